@@ -1,0 +1,210 @@
+#include "cli/pipeline.h"
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <set>
+#include <sstream>
+
+#include <tbb/global_control.h>
+
+#include "core/chunk_writer.h"
+#include "core/window.h"
+
+namespace fs = std::filesystem;
+
+namespace shadowcull::cli {
+
+int exitCodeFor(ErrorKind kind) {
+    switch (kind) {
+        case ErrorKind::BadInput:
+        case ErrorKind::MissingResource: return kExitBadInput;
+        case ErrorKind::Io: return kExitIo;
+        case ErrorKind::Internal: return kExitInternal;
+    }
+    return kExitInternal;
+}
+
+std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdicts& cv) {
+    std::vector<std::string> out;
+    if (w.hasAlphaTested) out.push_back("alpha-tested groups let light pass");
+    if (w.hasTerrain) out.push_back("terrain rule (receivers deeper than " + std::to_string(w.terrainTolerance) + " m under terrain do not count)");
+    const std::vector<bool> reaching = lightsWithUndecided(cv);
+    for (size_t l = 0; l < w.lsLights.size(); ++l) {
+        const Light& L = w.lsLights[l];
+        std::string who = "light " + std::to_string(l + 1) + " '" + L.name + "': ";
+        bool anyGroup = false;
+        for (const ObjectVerdicts& ov : cv.objects) anyGroup |= ov.groupCount > 0;
+        if (anyGroup && !reaching[l]) {
+            bool reachCulledAll = true;
+            for (const ObjectVerdicts& ov : cv.objects)
+                for (int g = 0; g < ov.groupCount; ++g)
+                    reachCulledAll &= ov.decisions[size_t(g) * size_t(cv.lightCount) + l].stage != "raycast";
+            if (reachCulledAll) {
+                out.push_back(who + "cannot reach the chunk's casters (not traced)");
+                continue;
+            }
+        }
+        if (L.type != LightType::Directional) out.push_back(who + "range " + std::to_string(L.range) + " m");
+        if (L.type == LightType::Spot) out.push_back(who + "cone " + std::to_string(L.coneHalfAngleDeg) + " deg");
+        if (L.bias > 0) out.push_back(who + "bias " + std::to_string(L.bias) + " m");
+        if (L.slopeBias > 0) out.push_back(who + "slope bias " + std::to_string(L.slopeBias) + " m");
+        if (L.filterRadius > 0)
+            out.push_back(who + "filter radius " + std::to_string(L.filterRadius) +
+                          " m (witnesses need no dilation; no stage of this bake proves 0 from receivers)");
+    }
+    return out;
+}
+
+namespace {
+
+std::string readFile(const std::string& path, bool& ok) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    ok = bool(in) || in.eof();
+    return ss.str();
+}
+
+// The masks to write for one chunk, in element order. Skipped objects keep their old <shadow>.
+std::vector<ShadowWrite> shadowWrites(const ChunkVerdicts& cv) {
+    std::vector<ShadowWrite> out;
+    for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+        const ObjectVerdicts& ov = cv.objects[oi];
+        ShadowWrite w;
+        w.write = ov.windowObject >= 0;
+        w.terrain = ov.terrain;
+        for (int g = 0; g < ov.groupCount; ++g) {
+            uint32_t m = cv.groupMask(oi, g);
+            w.mask |= m;
+            if (!ov.terrain) w.groupMasks.push_back(m);
+        }
+        out.push_back(std::move(w));
+    }
+    return out;
+}
+
+}  // namespace
+
+Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto since = [](auto t) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count(); };
+    std::unique_ptr<tbb::global_control> threadLimit;
+    if (opt.threads > 0)
+        threadLimit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(opt.threads));
+
+    // 1. Which chunks.
+    std::vector<ChunkCoord> only;
+    for (const std::string& name : opt.chunkNames) {
+        std::string file = fs::path(name).filename().string();
+        if (file.size() == 9) file += ".chunk";  // "0000ffffo" is accepted too
+        std::optional<ChunkCoord> c = parseChunkName(file);
+        if (!c) return makeError(ErrorKind::BadInput, name, 0, "not a chunk name (XXXXZZZZo.chunk, 16-bit hex)");
+        only.push_back(*c);
+    }
+
+    // 2. Load everything before writing anything.
+    Expected<Space> loaded = loadSpace(opt.spaceDir, opt.resourceRoot, opt.chunkNames.empty() ? nullptr : &only);
+    if (!loaded) return loaded.error();
+    Space& space = *loaded;
+    BakeResult result;
+    result.settings = space.settings;
+    result.diagnostics = space.diagnostics;
+    std::vector<ChunkCoord> targets;
+    if (opt.chunkNames.empty()) {
+        for (const auto& [c, cf] : space.chunks) targets.push_back(c);
+    } else {
+        std::set<ChunkCoord> seen;
+        for (ChunkCoord c : only) {
+            if (!space.chunks.count(c))
+                return makeError(ErrorKind::BadInput, (fs::path(opt.spaceDir) / chunkFileName(c)).string(), 0,
+                                 "no such chunk file in the space");
+            if (seen.insert(c).second) targets.push_back(c);
+        }
+    }
+    result.loadSeconds = since(t0);
+
+    // 3. Bake every chunk; stage its new text in a temporary file beside the target.
+    ReachStage reach;
+    raycast::RaycastStage rays(opt.raycast);
+    std::vector<Stage*> stages{&reach, &rays};
+    result.stages.resize(stages.size());
+    for (size_t s = 0; s < stages.size(); ++s) result.stages[s].name = stages[s]->name();
+    std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>> terrainMeshes;
+    struct Staged {
+        std::string temp, target;
+    };
+    std::vector<Staged> staged;
+    auto discardStaged = [&] {
+        for (const Staged& s : staged) fs::remove(s.temp);
+    };
+    if (opt.write && !opt.outDir.empty()) {
+        std::error_code ec;
+        fs::create_directories(opt.outDir, ec);
+        if (ec) return makeError(ErrorKind::Io, opt.outDir, 0, "cannot create output directory: " + ec.message());
+    }
+    // Temporaries of a bake that was killed are never chunk files; clear them away.
+    if (opt.write) removeStaleTempFiles(opt.outDir.empty() ? opt.spaceDir : opt.outDir);
+    for (size_t k = 0; k < targets.size(); ++k) {
+        const ChunkFile& cf = space.chunks.at(targets[k]);
+        BakeWindow window = buildWindow(space, targets[k], terrainMeshes);
+        ChunkVerdicts cv = makeChunkVerdicts(space, window);
+        for (size_t s = 0; s < stages.size(); ++s) {
+            StageStats st;
+            if (Status status = stages[s]->run(window, cv, st); !status) {
+                discardStaged();
+                Error e = status.error();
+                if (e.file.empty()) e.file = cf.path;
+                return e;
+            }
+            result.stages[s].stats.add(st);
+        }
+        cv.simulated = simulatedEffects(window, cv);
+        if (opt.write) {
+            const auto tw = std::chrono::steady_clock::now();
+            bool ok = false;
+            const std::string text = readFile(cf.path, ok);
+            if (!ok) {
+                discardStaged();
+                return makeError(ErrorKind::Io, cf.path, 0, "cannot read the chunk file again for writing");
+            }
+            Expected<std::string> rewritten = rewriteChunkShadows(text, cf.path, shadowWrites(cv));
+            if (!rewritten) {
+                discardStaged();
+                return rewritten.error();
+            }
+            const std::string target =
+                opt.outDir.empty() ? cf.path : (fs::path(opt.outDir) / fs::path(cf.path).filename()).string();
+            // Complete and synced before any target is replaced.
+            Expected<std::string> temp = stageFile(target, *rewritten);
+            if (!temp) {
+                discardStaged();
+                return temp.error();
+            }
+            staged.push_back({*temp, target});
+            result.writeSeconds += since(tw);
+        }
+        result.chunks.push_back(std::move(cv));
+        if (progress) progress(k + 1, targets.size());
+    }
+
+    // 4. Commit: one rename per file. Each rename is atomic, so an interruption here leaves
+    // every chunk file either as it was or complete.
+    const auto tc = std::chrono::steady_clock::now();
+    for (size_t k = 0; k < staged.size(); ++k) {
+        if (Status s = commitStagedFile(staged[k].temp, staged[k].target); !s) {
+            for (size_t j = k + 1; j < staged.size(); ++j) fs::remove(staged[j].temp);
+            Error e = s.error();
+            e.message += " (" + std::to_string(k) + " of " + std::to_string(staged.size()) +
+                         " chunk files were updated, each completely)";
+            return e;
+        }
+        ++result.chunksWritten;
+    }
+    result.writeSeconds += since(tc);
+    result.totalSeconds = since(t0);
+    return result;
+}
+
+}  // namespace shadowcull::cli

@@ -1,0 +1,63 @@
+// The bake pipeline behind `shadowcull bake`: load the space, run the stages per chunk
+// window, write the masks atomically, and gather what the summary and results JSON show.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/scene.h"
+#include "core/stage.h"
+#include "core/verdict.h"
+#include "raycast/raycast_stage.h"
+
+namespace shadowcull::cli {
+
+// Exit codes, one per kind of outcome (documented in docs/cli.md).
+enum ExitCode : int {
+    kExitOk = 0,
+    kExitSkippedInput = 1,  // baked, but some input was skipped (see the warnings)
+    kExitUsage = 2,
+    kExitBadInput = 3,      // stopped before writing anything
+    kExitIo = 4,            // writing failed; files are either original or complete
+    kExitInternal = 5,      // a library failed; nothing written
+};
+
+int exitCodeFor(ErrorKind kind);
+
+struct BakeOptions {
+    std::string spaceDir;
+    std::string outDir;       // empty: in place
+    std::string resourceRoot; // --res
+    std::vector<std::string> chunkNames;  // empty: every chunk
+    int threads = 0;          // 0: all cores
+    raycast::RaycastOptions raycast;
+    bool write = true;        // false: compute only (tests, reports)
+};
+
+struct StageTiming {
+    std::string name;
+    StageStats stats;
+};
+
+struct BakeResult {
+    SpaceSettings settings;
+    std::vector<Diagnostic> diagnostics;
+    std::vector<ChunkVerdicts> chunks;  // in chunk order
+    std::vector<StageTiming> stages;    // in pipeline order
+    double loadSeconds = 0, writeSeconds = 0, totalSeconds = 0;
+    int chunksWritten = 0;
+};
+
+// Progress callback: (chunks done, chunks total).
+using Progress = std::function<void(size_t, size_t)>;
+
+// Runs the whole bake. On error nothing has been written (or, for an I/O failure while
+// committing, every chunk file is either as it was or complete).
+Expected<BakeResult> runBake(const BakeOptions& options, const Progress& progress = {});
+
+// Effects the window calls for, as the bake simulated them (for the summary and JSON).
+std::vector<std::string> simulatedEffects(const BakeWindow& window, const ChunkVerdicts& verdicts);
+
+}  // namespace shadowcull::cli

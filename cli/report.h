@@ -1,0 +1,30 @@
+// What a bake reports: the terminal summary and the results JSON (--results).
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/pipeline.h"
+
+namespace shadowcull::cli {
+
+struct BitCounts {
+    uint64_t groups = 0, bits = 0;
+    uint64_t kept = 0, culled = 0;         // bits written 1 / 0
+    uint64_t provedKept = 0;               // 1 with a witness
+    uint64_t undecided = 0;                // 1 because nobody could decide
+    std::map<std::string, uint64_t> culledBy;  // stage -> bits proved 0
+};
+
+BitCounts countBits(const BakeResult& r);
+
+// The summary printed at the end of a bake (plain text, deterministic but for the times).
+std::string formatSummary(const BakeResult& r, bool wrote);
+
+// Per chunk, object, group and light: the bit, the deciding stage and its evidence.
+// Deterministic for the same input: chunks in grid order, objects in document order,
+// doubles printed in shortest round-trip form.
+nlohmann::json resultsJson(const BakeResult& r);
+
+}  // namespace shadowcull::cli

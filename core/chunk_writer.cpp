@@ -1,0 +1,416 @@
+// Byte-preserving <shadow> writer. Chunk files are edited as text: a small XML scanner
+// finds the byte spans of elements, and only the spans of <shadow> elements (or an
+// insertion point) change. A DOM round trip (tinyxml2) would re-serialise the whole file
+// and lose comments' layout, quoting, CRLF endings and the like, which users diff.
+
+#include "core/chunk_writer.h"
+
+#include <dirent.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+
+namespace shadowcull {
+
+namespace {
+
+// One element of the document, as byte offsets into the text.
+struct Node {
+    std::string name;
+    size_t begin = 0;     // '<' of the start tag
+    size_t tagEnd = 0;    // one past the '>' of the start tag
+    size_t endBegin = 0;  // '<' of the end tag (== tagEnd when self-closing)
+    size_t end = 0;       // one past the '>' of the end tag (== tagEnd when self-closing)
+    bool selfClosing = false;
+    std::vector<size_t> children;  // indices of direct child elements, in document order
+};
+
+bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
+
+// XML names are stricter, but anything that cannot end a name is enough to find spans.
+bool isNameChar(char c) { return !isSpace(c) && c != '/' && c != '>' && c != '<' && c != '=' && c != '"' && c != '\''; }
+
+bool startsWith(const std::string& s, size_t at, const char* prefix) { return s.compare(at, std::strlen(prefix), prefix) == 0; }
+
+int lineAt(const std::string& s, size_t pos) {
+    return 1 + int(std::count(s.begin(), s.begin() + std::min(pos, s.size()), '\n'));
+}
+
+size_t lineStart(const std::string& s, size_t pos) {
+    size_t nl = pos == 0 ? std::string::npos : s.rfind('\n', pos - 1);
+    return nl == std::string::npos ? 0 : nl + 1;
+}
+
+// True when only spaces and tabs precede `pos` on its line.
+bool beginsLine(const std::string& s, size_t pos) {
+    for (size_t p = lineStart(s, pos); p < pos; ++p)
+        if (s[p] != ' ' && s[p] != '\t') return false;
+    return true;
+}
+
+// The leading spaces and tabs of the line that contains `pos`.
+std::string lineIndent(const std::string& s, size_t pos) {
+    size_t b = lineStart(s, pos), e = b;
+    while (e < s.size() && (s[e] == ' ' || s[e] == '\t')) ++e;
+    return s.substr(b, e - b);
+}
+
+size_t skipSpace(const std::string& s, size_t p) {
+    while (p < s.size() && isSpace(s[p])) ++p;
+    return p;
+}
+
+size_t skipName(const std::string& s, size_t p) {
+    while (p < s.size() && isNameChar(s[p])) ++p;
+    return p;
+}
+
+// The index of the last character of the first `close` at or after `from`, or npos.
+size_t lastCharOf(const std::string& s, size_t from, const std::string& close) {
+    size_t e = s.find(close, from);
+    return e == std::string::npos ? e : e + close.size() - 1;
+}
+
+// Scans the whole document. Returns all elements in document order; nodes[0] is the root.
+Expected<std::vector<Node>> scanXml(const std::string& s, const std::string& file) {
+    auto fail = [&](size_t at, const std::string& msg) {
+        return makeError(ErrorKind::BadInput, file, lineAt(s, at), msg);
+    };
+    std::vector<Node> nodes;
+    std::vector<size_t> open;  // unclosed elements, innermost last
+    bool rootClosed = false;
+    size_t i = startsWith(s, 0, "\xEF\xBB\xBF") ? 3 : 0;
+    while (i < s.size()) {
+        if (s[i] != '<') {
+            size_t next = std::min(s.find('<', i), s.size());
+            size_t text = s.find_first_not_of(" \t\r\n", i);
+            if (open.empty() && text < next)
+                return fail(text, rootClosed ? "text after the root element" : "text before the root element");
+            i = next;
+            continue;
+        }
+        // Markup whose content may hold '<' and '>' is skipped whole.
+        auto skipTo = [&](size_t from, const char* close, const char* what) -> Status {
+            size_t e = s.find(close, from);
+            if (e == std::string::npos) return fail(i, std::string("unclosed ") + what);
+            i = e + std::strlen(close);
+            return Status::ok();
+        };
+        if (startsWith(s, i, "<!--")) {
+            if (Status st = skipTo(i + 4, "-->", "comment"); !st) return st.error();
+        } else if (startsWith(s, i, "<![CDATA[")) {
+            if (open.empty()) return fail(i, "CDATA outside the root element");
+            if (Status st = skipTo(i + 9, "]]>", "CDATA section"); !st) return st.error();
+        } else if (startsWith(s, i, "<?")) {
+            if (Status st = skipTo(i + 2, "?>", "processing instruction"); !st) return st.error();
+        } else if (startsWith(s, i, "<!DOCTYPE")) {
+            if (!nodes.empty()) return fail(i, "DOCTYPE inside or after the root element");
+            // The internal subset [...] may hold '>' in declarations, quoted literals and comments.
+            size_t p = i + 9;
+            for (int depth = 0; p < s.size(); ++p) {
+                if (s[p] == '"' || s[p] == '\'') p = lastCharOf(s, p + 1, std::string(1, s[p]));
+                else if (startsWith(s, p, "<!--")) p = lastCharOf(s, p + 4, "-->");
+                else if (startsWith(s, p, "<?")) p = lastCharOf(s, p + 2, "?>");
+                else if (s[p] == '[') ++depth;
+                else if (s[p] == ']') --depth;
+                else if (s[p] == '>' && depth <= 0) break;
+                if (p == std::string::npos) break;  // unclosed literal, comment or PI
+            }
+            if (p >= s.size()) return fail(i, "unclosed DOCTYPE");
+            i = p + 1;
+        } else if (startsWith(s, i, "</")) {
+            size_t n = skipName(s, i + 2), p = skipSpace(s, n);
+            std::string name = s.substr(i + 2, n - i - 2);
+            if (name.empty() || p >= s.size() || s[p] != '>') return fail(i, "malformed end tag");
+            if (open.empty()) return fail(i, "end tag </" + name + "> without a start tag");
+            Node& top = nodes[open.back()];
+            if (top.name != name)
+                return fail(i, "end tag </" + name + "> does not match <" + top.name + "> from line " +
+                                   std::to_string(lineAt(s, top.begin)));
+            top.endBegin = i;
+            top.end = p + 1;
+            open.pop_back();
+            rootClosed = open.empty();
+            i = p + 1;
+        } else if (startsWith(s, i, "<!")) {
+            return fail(i, "unexpected markup '<!'");
+        } else {
+            Node node;
+            node.begin = i;
+            size_t n = skipName(s, i + 1);
+            node.name = s.substr(i + 1, n - i - 1);
+            if (node.name.empty()) return fail(i, "'<' not followed by an element name");
+            if (open.empty() && !nodes.empty()) return fail(i, "second root element <" + node.name + ">");
+            size_t p = n;
+            for (;;) {
+                p = skipSpace(s, p);
+                if (p >= s.size()) return fail(i, "unclosed start tag <" + node.name + ">");
+                if (s[p] == '>') break;
+                if (startsWith(s, p, "/>")) {
+                    node.selfClosing = true;
+                    ++p;
+                    break;
+                }
+                size_t a = p;
+                p = skipSpace(s, skipName(s, p));
+                if (p == a || p >= s.size() || s[p] != '=')
+                    return fail(std::min(p, s.size() - 1), "malformed attribute in <" + node.name + ">");
+                p = skipSpace(s, p + 1);
+                if (p >= s.size() || (s[p] != '"' && s[p] != '\''))
+                    return fail(std::min(p, s.size() - 1), "unquoted attribute value in <" + node.name + ">");
+                size_t q = s.find(s[p], p + 1);
+                if (q == std::string::npos) return fail(p, "unclosed attribute value in <" + node.name + ">");
+                p = q + 1;
+            }
+            node.tagEnd = p + 1;
+            if (node.selfClosing) node.endBegin = node.end = node.tagEnd;
+            size_t index = nodes.size();
+            if (!open.empty()) nodes[open.back()].children.push_back(index);
+            nodes.push_back(std::move(node));
+            if (!nodes.back().selfClosing) open.push_back(index);
+            rootClosed = open.empty();
+            i = p + 1;
+        }
+    }
+    if (!open.empty()) return fail(nodes[open.back()].begin, "<" + nodes[open.back()].name + "> is never closed");
+    if (nodes.empty()) return fail(s.empty() ? 0 : s.size() - 1, "no root element");
+    return nodes;
+}
+
+// The file's own conventions, so inserted text looks like its neighbours.
+std::string detectLineEnding(const std::string& s) {
+    size_t nl = s.find('\n');
+    return nl != std::string::npos && nl > 0 && s[nl - 1] == '\r' ? "\r\n" : "\n";
+}
+
+std::string detectIndentUnit(const std::string& s) {
+    for (size_t p = 0; p < s.size();) {
+        size_t q = std::min(s.find('\n', p), s.size());
+        if ((s[p] == ' ' || s[p] == '\t') && s.find_first_not_of(" \t\r", p) < q) return s[p] == '\t' ? "\t" : "  ";
+        p = q + 1;
+    }
+    return "  ";
+}
+
+struct Layout {
+    std::string eol, unit;
+};
+
+// The <shadow> element text. `inlineForm` writes it on one line (for elements that sit on
+// one line); otherwise nested lines are indented from `indent`, the <shadow> line's indentation.
+std::string shadowText(const ShadowWrite& w, const std::string& indent, const Layout& layout, bool inlineForm) {
+    std::string out = "<shadow> " + std::to_string(w.mask);
+    if (w.terrain || w.groupMasks.empty()) return out + " </shadow>";
+    auto line = [&](int depth, const std::string& text) {
+        if (inlineForm) {
+            out += " ";
+        } else {
+            out += layout.eol + indent;
+            for (int d = 0; d < depth; ++d) out += layout.unit;
+        }
+        out += text;
+    };
+    line(1, "<RenderSet>");
+    line(2, "<Geometry>");
+    for (uint32_t g : w.groupMasks) line(3, "<PrimitiveGroup> " + std::to_string(g) + " </PrimitiveGroup>");
+    line(2, "</Geometry>");
+    line(1, "</RenderSet>");
+    line(0, "</shadow>");
+    return out;
+}
+
+struct Edit {
+    size_t begin, end;  // the replaced span
+    std::string text;
+};
+
+// The edits for one <model> or <terrain> element.
+void planElement(const std::string& s, const std::vector<Node>& nodes, const Node& el, const ShadowWrite& w,
+                 const Layout& layout, std::vector<Edit>& edits) {
+    // An element written on one line stays on one line; the choice depends only on the
+    // element's own shape so that a second rewrite reproduces the first (idempotence).
+    bool inlineForm = el.selfClosing ? !beginsLine(s, el.begin)
+                                     : s.find('\n', el.begin) >= el.endBegin;
+    std::vector<const Node*> shadows;
+    for (size_t c : el.children)
+        if (nodes[c].name == "shadow") shadows.push_back(&nodes[c]);
+
+    if (!shadows.empty()) {
+        const Node& first = *shadows[0];
+        edits.push_back({first.begin, first.end, shadowText(w, lineIndent(s, first.begin), layout, inlineForm)});
+        for (size_t k = 1; k < shadows.size(); ++k) {
+            // Take the indentation and, for a shadow alone at its line start, the line break
+            // before it, so no blank line is left where it was.
+            size_t b = shadows[k]->begin;
+            while (b > 0 && (s[b - 1] == ' ' || s[b - 1] == '\t')) --b;
+            if (b > 0 && s[b - 1] == '\n') {
+                --b;
+                if (b > 0 && s[b - 1] == '\r') --b;
+            }
+            edits.push_back({b, shadows[k]->end, ""});
+        }
+        return;
+    }
+
+    std::string indent = lineIndent(s, el.begin);
+    std::string endTag = "</" + el.name + ">";
+    if (el.selfClosing) {
+        // <model a="1"/> -> <model a="1"> ... </model>; whitespace before "/>" goes too.
+        size_t b = el.tagEnd - 2;
+        while (isSpace(s[b - 1])) --b;
+        std::string text = inlineForm ? "> " + shadowText(w, indent, layout, true) + " " + endTag
+                                      : ">" + layout.eol + indent + layout.unit +
+                                            shadowText(w, indent + layout.unit, layout, false) + layout.eol +
+                                            indent + endTag;
+        edits.push_back({b, el.tagEnd, text});
+    } else if (inlineForm) {
+        std::string lead = isSpace(s[el.endBegin - 1]) ? "" : " ";
+        edits.push_back({el.endBegin, el.endBegin, lead + shadowText(w, indent, layout, true) + " "});
+    } else {
+        // Indent like the last child element when it starts its own line, else one unit in.
+        std::string childIndent = indent + layout.unit;
+        if (!el.children.empty() && beginsLine(s, nodes[el.children.back()].begin))
+            childIndent = lineIndent(s, nodes[el.children.back()].begin);
+        std::string line = childIndent + shadowText(w, childIndent, layout, false) + layout.eol;
+        if (beginsLine(s, el.endBegin)) {
+            size_t at = lineStart(s, el.endBegin);
+            edits.push_back({at, at, line});
+        } else {
+            edits.push_back({el.endBegin, el.endBegin, layout.eol + line + indent});
+        }
+    }
+}
+
+Status ioError(const std::string& path, const std::string& what) {
+    return makeError(ErrorKind::Io, path, 0, what + ": " + std::strerror(errno));
+}
+
+std::string parentDir(const std::string& path) {
+    size_t slash = path.rfind('/');
+    if (slash == std::string::npos) return ".";
+    return slash == 0 ? "/" : path.substr(0, slash);
+}
+
+}  // namespace
+
+Expected<std::string> rewriteChunkShadows(const std::string& xml, const std::string& file,
+                                          const std::vector<ShadowWrite>& objects) {
+    Expected<std::vector<Node>> scanned = scanXml(xml, file);
+    if (!scanned) return scanned.error();
+    const std::vector<Node>& nodes = *scanned;
+    const Node& root = nodes[0];
+
+    std::vector<const Node*> elements;
+    for (size_t c : root.children)
+        if (nodes[c].name == "model" || nodes[c].name == "terrain") elements.push_back(&nodes[c]);
+    if (elements.size() != objects.size())
+        return makeError(ErrorKind::BadInput, file, lineAt(xml, root.begin),
+                         "<" + root.name + "> has " + std::to_string(elements.size()) +
+                             " <model>/<terrain> elements, but " + std::to_string(objects.size()) +
+                             " objects were given (was the file changed?)");
+
+    Layout layout{detectLineEnding(xml), detectIndentUnit(xml)};
+    std::vector<Edit> edits;
+    for (size_t k = 0; k < elements.size(); ++k) {
+        const ShadowWrite& w = objects[k];
+        if (!w.write) continue;
+        // A kind mismatch means the file is not the one the objects were read from.
+        if (w.terrain != (elements[k]->name == "terrain"))
+            return makeError(ErrorKind::BadInput, file, lineAt(xml, elements[k]->begin),
+                             "object " + std::to_string(k) + " is <" + elements[k]->name + "> here but was read as " +
+                                 (w.terrain ? "terrain" : "a model"));
+        planElement(xml, nodes, *elements[k], w, layout, edits);
+    }
+
+    std::stable_sort(edits.begin(), edits.end(), [](const Edit& a, const Edit& b) { return a.begin < b.begin; });
+    std::string out;
+    out.reserve(xml.size() + 256 * edits.size());
+    size_t at = 0;
+    for (const Edit& e : edits) {
+        out.append(xml, at, e.begin - at);
+        out += e.text;
+        at = e.end;
+    }
+    out.append(xml, at, std::string::npos);
+    return out;
+}
+
+std::string tempPathFor(const std::string& path) {
+    size_t slash = path.rfind('/');
+    size_t nameAt = slash == std::string::npos ? 0 : slash + 1;
+    return path.substr(0, nameAt) + "." + path.substr(nameAt) + ".shadowcull-tmp";
+}
+
+Expected<std::string> stageFile(const std::string& path, const std::string& contents) {
+    const std::string temp = tempPathFor(path);
+    // Keep the permissions users gave the file; a new file gets the umask's default.
+    struct stat st {};
+    bool existed = ::stat(path.c_str(), &st) == 0;
+
+    int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) return ioError(path, "cannot create temporary file " + temp).error();
+    auto fail = [&](const std::string& what) {
+        Status s = ioError(path, what);  // before close/unlink can change errno
+        if (fd >= 0) ::close(fd);
+        ::unlink(temp.c_str());
+        return s.error();
+    };
+    if (existed && ::fchmod(fd, st.st_mode & 07777) != 0) return fail("cannot set permissions of " + temp);
+    for (size_t done = 0; done < contents.size();) {
+        ssize_t n = ::write(fd, contents.data() + done, contents.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) return fail("cannot write " + temp);
+        done += size_t(n);
+    }
+    if (::fsync(fd) != 0) return fail("cannot sync " + temp);
+    int closed = ::close(fd);
+    fd = -1;
+    if (closed != 0) return fail("cannot close " + temp);
+    return temp;
+}
+
+Status commitStagedFile(const std::string& staged, const std::string& path) {
+    if (::rename(staged.c_str(), path.c_str()) != 0) {
+        Status s = ioError(path, "cannot replace the file");
+        ::unlink(staged.c_str());
+        return s;
+    }
+    // Make the rename itself durable. Some file systems cannot sync directories (EINVAL).
+    int dfd = ::open(parentDir(path).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dfd < 0) return ioError(path, "file replaced, but cannot open its directory to sync it");
+    int synced = ::fsync(dfd);
+    Status s = synced != 0 && errno != EINVAL ? ioError(path, "file replaced, but syncing its directory failed")
+                                              : Status::ok();
+    ::close(dfd);
+    return s;
+}
+
+Status writeFileAtomic(const std::string& path, const std::string& contents) {
+    Expected<std::string> staged = stageFile(path, contents);
+    if (!staged) return staged.error();
+    return commitStagedFile(*staged, path);
+}
+
+int removeStaleTempFiles(const std::string& dir) {
+    static const std::string suffix = ".shadowcull-tmp";
+    DIR* d = ::opendir(dir.c_str());
+    if (!d) return 0;
+    int removed = 0;
+    while (const dirent* e = ::readdir(d)) {
+        std::string name = e->d_name;
+        if (name.size() <= suffix.size() || name[0] != '.' ||
+            name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
+            continue;
+        std::string full = dir + "/" + name;
+        struct stat st {};
+        if (::lstat(full.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::unlink(full.c_str()) == 0) ++removed;
+    }
+    ::closedir(d);
+    return removed;
+}
+
+}  // namespace shadowcull

@@ -1,0 +1,61 @@
+// Writing <shadow> masks into chunk files: every byte outside the <shadow> elements is
+// kept as it was (comments, unknown elements, attribute order, whitespace, line endings),
+// and files are replaced atomically (write beside, fsync, rename).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+
+namespace shadowcull {
+
+// New <shadow> content for one <model> or <terrain> child of the chunk's root element.
+struct ShadowWrite {
+    bool write = true;                 // false: leave this element exactly as it is
+    bool terrain = false;              // terrain: only the number, no RenderSet
+    uint32_t mask = 0;                 // bitwise OR of groupMasks for models
+    std::vector<uint32_t> groupMasks;  // models: one per primitive group, in group order
+};
+
+// Rewrites `xml` (the full text of a chunk file). `objects[i]` applies to the i-th child
+// of the root element whose name is "model" or "terrain", in document order; the count
+// must match exactly, else BadInput. In each such element, the first <shadow> child is
+// replaced in place and any further <shadow> children are removed (with the whitespace
+// before them); with none, a new <shadow> is inserted before the element's end tag, on
+// its own line, indented like its siblings, using the file's line ending (CRLF or LF).
+// Layout written (masks in decimal):
+//   <shadow> 3
+//     <RenderSet>
+//       <Geometry>
+//         <PrimitiveGroup> 2 </PrimitiveGroup>
+//         <PrimitiveGroup> 3 </PrimitiveGroup>
+//       </Geometry>
+//     </RenderSet>
+//   </shadow>
+// Terrain: `<shadow> 3 </shadow>`.
+// `file` is used in messages only.
+Expected<std::string> rewriteChunkShadows(const std::string& xml, const std::string& file,
+                                          const std::vector<ShadowWrite>& objects);
+
+// Writes `contents` to `path` atomically: a temporary file in the same directory
+// (named tempPathFor(path)), fsync, rename over `path`, fsync of the directory. On any
+// failure the temporary is removed and `path` is untouched (ErrorKind::Io).
+Status writeFileAtomic(const std::string& path, const std::string& contents);
+
+// The two halves of writeFileAtomic, for a bake that stages every file before replacing
+// any: stageFile writes `contents` completely to tempPathFor(path) (with `path`'s
+// permission bits, synced) and returns that name; commitStagedFile renames it over `path`
+// and syncs the directory (on failure the staged file is removed, `path` untouched).
+Expected<std::string> stageFile(const std::string& path, const std::string& contents);
+Status commitStagedFile(const std::string& staged, const std::string& path);
+
+// The temporary name used by writeFileAtomic: ".<name>.shadowcull-tmp" beside `path`.
+std::string tempPathFor(const std::string& path);
+
+// Removes temporaries left in `dir` by an interrupted bake (files matching
+// ".*.shadowcull-tmp"). Returns how many were removed.
+int removeStaleTempFiles(const std::string& dir);
+
+}  // namespace shadowcull

@@ -1,0 +1,49 @@
+// Triangle meshes with primitive groups, as loaded from OBJ+MTL and glTF 2.0 files.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/status.h"
+
+namespace shadowcull {
+
+// One primitive group (spec: OBJ: one per material in order of first `usemtl`, a file
+// without `usemtl` is group 0; glTF: one per mesh primitive in document order).
+struct PrimitiveGroup {
+    std::string name;          // material name (OBJ) or "mesh<i>/primitive<j>" (glTF); for messages only
+    bool alphaTested = false;  // light passes it (glTF alphaMode MASK/BLEND, MTL map_d, or .model override)
+    bool doubleSided = false;  // two-sided receiver (glTF doubleSided or .model override); alphaTested implies two-sided
+    bool twoSided() const { return alphaTested || doubleSided; }
+};
+
+// Mesh in model-local coordinates (metres, Y up, right-handed). Triangles are
+// counter-clockwise when seen from their front. Degenerate triangles are kept here (the
+// stages skip them); vertices are finite (loaders reject NaN/Inf with file and line).
+struct Mesh {
+    std::vector<glm::dvec3> positions;
+    std::vector<std::array<uint32_t, 3>> triangles;  // indices into positions
+    std::vector<uint32_t> triangleGroup;             // per triangle: index into groups
+    std::vector<PrimitiveGroup> groups;              // every group, also those without triangles
+};
+
+// Loads a Wavefront OBJ file (+ the MTL libraries it names, relative to the OBJ file).
+// Polygons are fan-triangulated; negative (relative) indices are supported; `o`/`g`/`s`
+// lines do not start groups. Errors name the file and line.
+Expected<Mesh> loadObj(const std::string& path);
+
+// Loads a glTF 2.0 file (.gltf with external or data: URI buffers, or binary .glb).
+// Node transforms of the default scene (or of every root node when there is no scene)
+// are applied; a primitive drawn by several nodes contributes all of its placements to
+// its one group. Triangle modes 4/5/6 are read; points and lines add no triangles.
+// Errors name the file and, for JSON, the line; for binary data, the byte offset.
+Expected<Mesh> loadGltf(const std::string& path);
+
+// Dispatches by extension (.obj, .gltf, .glb; case-insensitive).
+Expected<Mesh> loadMeshFile(const std::string& path);
+
+}  // namespace shadowcull

@@ -1,0 +1,254 @@
+// Wavefront OBJ + MTL loader. Written by hand rather than with a library so that group
+// numbering follows the scene-format spec exactly and every error names file and line.
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <string_view>
+#include <system_error>
+
+#include "core/mesh.h"
+
+namespace fs = std::filesystem;
+
+namespace shadowcull {
+namespace {
+
+// Thrown only inside this file and turned into an Error by loadObj; it keeps the small
+// parsing helpers free of error plumbing.
+struct ObjFailure {
+    int line;
+    std::string message;
+};
+
+[[noreturn]] void fail(int line, std::string message) { throw ObjFailure{line, std::move(message)}; }
+
+bool readFile(const fs::path& path, std::string& out) {
+    std::error_code ec;
+    if (!fs::is_regular_file(path, ec)) return false;  // ifstream would "open" a directory
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return false;
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    out = ss.str();
+    return !in.bad();
+}
+
+// Yields logical lines: physical lines ending in a backslash are joined with the next
+// one, '\r' before '\n' is dropped and '#' starts a comment. A statement's line number is
+// that of its first physical line, which is where an editor would take the user.
+class LineReader {
+public:
+    explicit LineReader(const std::string& text) : text_(text) {}
+
+    bool next(std::string& out, int& line) {
+        if (pos_ >= text_.size()) return false;
+        out.clear();
+        line = nextLine_;
+        while (pos_ < text_.size()) {
+            size_t end = text_.find('\n', pos_);
+            if (end == std::string::npos) end = text_.size();
+            std::string_view phys(text_.data() + pos_, end - pos_);
+            pos_ = end + 1;
+            ++nextLine_;
+            if (!phys.empty() && phys.back() == '\r') phys.remove_suffix(1);
+            if (!phys.empty() && phys.back() == '\\') {
+                out.append(phys.data(), phys.size() - 1);
+                out += ' ';
+                continue;
+            }
+            out.append(phys.data(), phys.size());
+            break;
+        }
+        if (size_t hash = out.find('#'); hash != std::string::npos) out.resize(hash);
+        return true;
+    }
+
+private:
+    const std::string& text_;
+    size_t pos_ = 0;
+    int nextLine_ = 1;
+};
+
+bool isBlank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
+
+void splitTokens(std::string_view s, std::vector<std::string_view>& out) {
+    out.clear();
+    size_t i = 0;
+    while (i < s.size()) {
+        while (i < s.size() && isBlank(s[i])) ++i;
+        size_t start = i;
+        while (i < s.size() && !isBlank(s[i])) ++i;
+        if (i > start) out.push_back(s.substr(start, i - start));
+    }
+}
+
+// The statement after its keyword, trimmed: material names may contain spaces.
+std::string restAfter(const std::string& stmt, std::string_view keyword) {
+    size_t b = size_t(keyword.data() - stmt.data()) + keyword.size();
+    while (b < stmt.size() && isBlank(stmt[b])) ++b;
+    size_t e = stmt.size();
+    while (e > b && isBlank(stmt[e - 1])) --e;
+    return stmt.substr(b, e - b);
+}
+
+std::string quoted(std::string_view s) { return "'" + std::string(s) + "'"; }
+
+// from_chars is locale-independent and tells exactly where a number stops, so "1.5e" or
+// "1.5x" (a truncated or corrupt file) is caught instead of silently read as 1.5.
+double parseNumber(std::string_view tok, int line) {
+    std::string_view s = tok;
+    if (s.size() > 1 && s[0] == '+' && s[1] != '-') s.remove_prefix(1);  // from_chars rejects '+'
+    double v = 0;
+    auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (ec == std::errc::invalid_argument || ptr != s.data() + s.size()) fail(line, "malformed number " + quoted(tok));
+    if (ec == std::errc::result_out_of_range) v = std::strtod(std::string(s).c_str(), nullptr);  // underflow is fine
+    if (!std::isfinite(v)) fail(line, "non-finite number " + quoted(tok));
+    return v;
+}
+
+// OBJ index (1-based, or negative = relative to the elements defined so far) -> 0-based.
+uint32_t resolveIndex(std::string_view tok, std::string_view ref, size_t defined, const char* what, int line) {
+    long long v = 0;
+    auto [ptr, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
+    if (tok.empty() || ec != std::errc() || ptr != tok.data() + tok.size())
+        fail(line, "malformed vertex reference " + quoted(ref));
+    const std::string where = std::string(what) + " index " + std::string(tok) + (ref == tok ? "" : " in " + quoted(ref));
+    if (v == 0) fail(line, where + " is invalid (OBJ indices start at 1)");
+    long long idx = v > 0 ? v - 1 : (long long)defined + v;
+    if (idx < 0 || idx >= (long long)defined)
+        fail(line, where + " is out of range (" + std::to_string(defined) + " defined so far)");
+    return uint32_t(idx);
+}
+
+// Names of MTL materials that have a `map_d` (the spec's only alpha-test signal; a `d` < 1
+// alone means blending and is deliberately ignored). Unreadable libraries are skipped: a
+// missing MTL only loses alpha-testing, which the .model override can restore.
+void readMtl(const fs::path& path, std::set<std::string>& alphaTested) {
+    std::string text;
+    if (!readFile(path, text)) return;
+    LineReader reader(text);
+    std::string stmt, material;
+    bool inMaterial = false;
+    int line = 0;
+    std::vector<std::string_view> tok;
+    while (reader.next(stmt, line)) {
+        splitTokens(stmt, tok);
+        if (tok.empty()) continue;
+        if (tok[0] == "newmtl") {
+            material = restAfter(stmt, tok[0]);
+            inMaterial = true;
+        } else if (tok[0] == "map_d" && inMaterial) {
+            alphaTested.insert(material);
+        }
+    }
+}
+
+Mesh parseObj(const fs::path& path, const std::string& text) {
+    Mesh mesh;
+    std::map<std::string, uint32_t> groupIndex;
+    // Group numbering (spec: one group per material in order of first use). A `usemtl`
+    // creates its group at once, even if no face follows, so numbering depends only on the
+    // order of `usemtl` lines. Faces before the first `usemtl` go to a group named "" that
+    // is created at the first such face; it therefore gets number 0 whenever it exists,
+    // which also makes a file without any `usemtl` group 0, as the spec requires.
+    auto groupFor = [&](const std::string& name) {
+        auto [it, added] = groupIndex.emplace(name, uint32_t(mesh.groups.size()));
+        if (added) mesh.groups.push_back(PrimitiveGroup{name});
+        return it->second;
+    };
+    std::vector<fs::path> mtlFiles;
+    size_t texcoords = 0, normals = 0;
+    bool haveGroup = false;
+    uint32_t group = 0;
+
+    LineReader reader(text);
+    std::string stmt;
+    int line = 0;
+    std::vector<std::string_view> tok;
+    std::vector<uint32_t> poly;
+    while (reader.next(stmt, line)) {
+        splitTokens(stmt, tok);
+        if (tok.empty()) continue;
+        const std::string_view key = tok[0];
+        if (key == "v") {
+            // x y z, optionally w or an r g b colour (a common extension); only xyz is used,
+            // but every value must be a number so truncation is noticed.
+            if (tok.size() < 4 || tok.size() > 7) fail(line, "'v' needs 3 coordinates (x y z [w])");
+            glm::dvec3 p(parseNumber(tok[1], line), parseNumber(tok[2], line), parseNumber(tok[3], line));
+            for (size_t k = 4; k < tok.size(); ++k) parseNumber(tok[k], line);
+            if (mesh.positions.size() >= UINT32_MAX) fail(line, "too many vertices for 32-bit indices");
+            mesh.positions.push_back(p);
+        } else if (key == "vt") {
+            ++texcoords;  // counted only to range-check face references
+        } else if (key == "vn") {
+            ++normals;
+        } else if (key == "f") {
+            if (tok.size() < 4) fail(line, "a face needs at least 3 vertices");
+            poly.clear();
+            for (size_t k = 1; k < tok.size(); ++k) {
+                // v, v/vt, v//vn or v/vt/vn.
+                std::string_view ref = tok[k], parts[3];
+                size_t n = 0, start = 0;
+                for (size_t i = 0; i <= ref.size(); ++i) {
+                    if (i < ref.size() && ref[i] != '/') continue;
+                    if (n == 3) fail(line, "malformed vertex reference " + quoted(ref));
+                    parts[n++] = ref.substr(start, i - start);
+                    start = i + 1;
+                }
+                poly.push_back(resolveIndex(parts[0], ref, mesh.positions.size(), "vertex", line));
+                if (n >= 2 && !(n == 3 && parts[1].empty()))
+                    resolveIndex(parts[1], ref, texcoords, "texture coordinate", line);
+                if (n == 3) resolveIndex(parts[2], ref, normals, "normal", line);
+            }
+            if (!haveGroup) {
+                group = groupFor("");
+                haveGroup = true;
+            }
+            // Fan around the first vertex keeps the polygon's winding in every triangle.
+            for (size_t k = 1; k + 1 < poly.size(); ++k) {
+                mesh.triangles.push_back({poly[0], poly[k], poly[k + 1]});
+                mesh.triangleGroup.push_back(group);
+            }
+        } else if (key == "usemtl") {
+            group = groupFor(restAfter(stmt, key));
+            haveGroup = true;
+        } else if (key == "mtllib") {
+            // Names are space-separated, but accept a single name with spaces if it exists.
+            const fs::path dir = path.parent_path();
+            std::error_code ec;
+            if (std::string whole = restAfter(stmt, key); fs::is_regular_file(dir / whole, ec)) {
+                mtlFiles.push_back(dir / whole);
+            } else {
+                for (size_t k = 1; k < tok.size(); ++k) mtlFiles.push_back(dir / std::string(tok[k]));
+            }
+        }
+        // Everything else (o, g, s, l, p, vp, curves, ...) does not affect the triangles.
+    }
+
+    if (mesh.groups.empty()) groupFor("");  // no faces and no usemtl: still one group
+    std::set<std::string> alphaTested;
+    for (const fs::path& mtl : mtlFiles) readMtl(mtl, alphaTested);
+    for (PrimitiveGroup& g : mesh.groups) g.alphaTested = alphaTested.count(g.name) > 0;
+    return mesh;
+}
+
+}  // namespace
+
+Expected<Mesh> loadObj(const std::string& path) {
+    std::string text;
+    if (!readFile(path, text)) return makeError(ErrorKind::MissingResource, path, 0, "cannot open OBJ file");
+    try {
+        return parseObj(path, text);
+    } catch (const ObjFailure& f) {
+        return makeError(ErrorKind::BadInput, path, f.line, f.message);
+    }
+}
+
+}  // namespace shadowcull

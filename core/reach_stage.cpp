@@ -1,0 +1,116 @@
+// ReachStage: the bits the input alone decides (see core/stage.h).
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+#include "core/stage.h"
+
+namespace shadowcull {
+
+ChunkVerdicts makeChunkVerdicts(const Space& space, const BakeWindow& window) {
+    ChunkVerdicts cv;
+    cv.coord = window.centre;
+    cv.path = window.centrePath;
+    cv.lightCount = int(space.settings.lights.size());
+    auto it = space.chunks.find(window.centre);
+    if (it == space.chunks.end()) return cv;
+    for (const ChunkObject& o : it->second.objects) {
+        ObjectVerdicts ov;
+        ov.elementIndex = o.elementIndex;
+        ov.terrain = o.kind == ChunkObject::Kind::Terrain;
+        ov.uuid = o.uuid;
+        for (size_t k = 0; k < window.objects.size(); ++k)
+            if (window.objects[k].source == &o) ov.windowObject = int(k);
+        if (ov.windowObject >= 0) {
+            ov.groupCount = int(window.objects[size_t(ov.windowObject)].mesh->groups.size());
+            ov.decisions.resize(size_t(ov.groupCount) * size_t(cv.lightCount));
+        }
+        cv.objects.push_back(std::move(ov));
+    }
+    return cv;
+}
+
+std::vector<bool> lightsWithUndecided(const ChunkVerdicts& verdicts) {
+    std::vector<bool> any(size_t(verdicts.lightCount), false);
+    for (const ObjectVerdicts& ov : verdicts.objects)
+        for (size_t k = 0; k < ov.decisions.size(); ++k)
+            if (ov.decisions[k].verdict == Verdict::Undecided) any[k % size_t(verdicts.lightCount)] = true;
+    return any;
+}
+
+namespace {
+
+// Relative margin on distance and angle comparisons: far above the rounding error of the
+// few double operations involved, far below any tolerance a user sets.
+constexpr double kRelMargin = 1e-9;
+
+double distanceToBox(const glm::dvec3& p, const Aabb& b) {
+    glm::dvec3 d = glm::max(glm::max(b.min - p, p - b.max), glm::dvec3(0.0));
+    return glm::length(d);
+}
+
+// True when no point of the box lies within the light's cone (spot lights): the box's
+// bounding sphere lies wholly outside the cone, with margin.
+bool boxOutsideCone(const Light& L, const Aabb& b) {
+    const glm::dvec3 c = 0.5 * (b.min + b.max);
+    const double r = 0.5 * glm::length(b.max - b.min);
+    const glm::dvec3 toC = c - L.position;
+    const double d = glm::length(toC);
+    if (!(d > r * (1 + kRelMargin) + kRelMargin)) return false;  // light inside or at the sphere
+    const double angle = std::acos(std::clamp(glm::dot(toC / d, L.direction), -1.0, 1.0));
+    const double halfSpan = std::asin(std::min(1.0, r / d));
+    const double cone = L.coneHalfAngleDeg * M_PI / 180.0;
+    return angle - halfSpan > cone + 1e-7;
+}
+
+}  // namespace
+
+Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
+    const auto t0 = std::chrono::steady_clock::now();
+    for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+        ObjectVerdicts& ov = cv.objects[oi];
+        if (ov.windowObject < 0) continue;
+        const WindowObject& wo = window.objects[size_t(ov.windowObject)];
+        // Window-local bounds of each group's triangles that have extent.
+        std::vector<Aabb> groupBounds(size_t(ov.groupCount));
+        for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
+            const auto& tri = wo.mesh->triangles[t];
+            const glm::dvec3 a = wo.mesh->positions[tri[0]], b = wo.mesh->positions[tri[1]], c = wo.mesh->positions[tri[2]];
+            if (hasRepeatedVertex(a, b, c)) continue;
+            Aabb& gb = groupBounds[wo.mesh->triangleGroup[t]];
+            gb.extend(wo.lsTransform.apply(a));
+            gb.extend(wo.lsTransform.apply(b));
+            gb.extend(wo.lsTransform.apply(c));
+        }
+        const bool castsShadow = wo.source->castsShadow;
+        for (int g = 0; g < ov.groupCount; ++g) {
+            for (int l = 0; l < cv.lightCount; ++l) {
+                Decision& d = cv.at(oi, g, l);
+                if (d.verdict != Verdict::Undecided) continue;
+                const Light& L = window.lsLights[size_t(l)];
+                const Aabb& gb = groupBounds[size_t(g)];
+                if (!castsShadow) {
+                    decide(d, Verdict::Culled, "input", "castsShadow is false");
+                } else if (gb.empty()) {
+                    decide(d, Verdict::Culled, "input", "the group has no triangle with three distinct vertices");
+                } else if (L.type != LightType::Directional &&
+                           distanceToBox(L.position, gb) > L.range * (1 + kRelMargin) + kRelMargin) {
+                    decide(d, Verdict::Culled, name(),
+                           "the group lies beyond the light's range (" + std::to_string(L.range) + " m)");
+                } else if (L.type == LightType::Spot && boxOutsideCone(L, gb)) {
+                    decide(d, Verdict::Culled, name(), "the group lies outside the light's cone");
+                } else {
+                    continue;
+                }
+                ++stats.provedCulled;
+            }
+        }
+    }
+    stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return Status::ok();
+}
+
+}  // namespace shadowcull

@@ -1,0 +1,149 @@
+// The scene model: what space.xml, chunk files, .model and .terrain files say, in the
+// units and conventions of ../shared/spec/scene-format.md (metres, Y up, right-handed,
+// row-vector transforms relative to the chunk origin).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/mesh.h"
+#include "core/status.h"
+
+namespace shadowcull {
+
+enum class LightType { Directional, Point, Spot };
+
+const char* lightTypeName(LightType type);
+
+// A light as written in space.xml. Positions are world coordinates (metres); directions
+// are unit vectors along which light travels. Light i (0-based) owns bit i of every mask.
+struct Light {
+    std::string name;
+    LightType type = LightType::Directional;
+    // Coordinates: world in SpaceSettings::lights, window-local in BakeWindow::lsLights.
+    glm::dvec3 direction{0.0, -1.0, 0.0};  // directional, spot; normalised on read
+    glm::dvec3 position{0.0};              // point, spot; metres
+    double range = 0.0;                      // metres; point, spot (> 0)
+    double coneHalfAngleDeg = 0.0;           // spot: half-angle in degrees, (0, 90]
+    double bias = 0.0;                       // metres
+    double slopeBias = 0.0;                  // metres at 45 degrees; times tan(theta)
+    double filterRadius = 0.0;               // metres; > 0 when the engine filters
+    int line = 0;                            // line of <light> in space.xml
+};
+
+// Neighbour counts: left = -x, right = +x, bottom = -z, top = +z (in chunks).
+struct Neighbours {
+    int left = 1, right = 1, bottom = 1, top = 1;
+};
+
+struct SpaceSettings {
+    std::string spaceDir;      // the space directory
+    std::string resourceRoot;  // resource paths in chunk files are relative to it
+    double chunkSize = 100.0;  // metres
+    Neighbours neighbours;
+    double terrainTolerance = 0.01;  // metres (default when space.xml is silent)
+    std::vector<Light> lights;       // file order; at most 32
+};
+
+constexpr int kMaxLights = 32;
+
+struct ChunkCoord {
+    int32_t x = 0, z = 0;
+    bool operator<(const ChunkCoord& o) const { return x != o.x ? x < o.x : z < o.z; }
+    bool operator==(const ChunkCoord& o) const { return x == o.x && z == o.z; }
+};
+
+// "XXXXZZZZo.chunk" with 16-bit two's-complement hex (either case). Returns nothing for any
+// other name.
+std::optional<ChunkCoord> parseChunkName(const std::string& fileName);
+std::string chunkFileName(ChunkCoord c);  // lowercase hex
+
+// Row-vector affine transform: p' = p.x*rows[0] + p.y*rows[1] + p.z*rows[2] + rows[3].
+struct RowTransform {
+    std::array<glm::dvec3, 4> rows{glm::dvec3(1, 0, 0), glm::dvec3(0, 1, 0), glm::dvec3(0, 0, 1),
+                                   glm::dvec3(0, 0, 0)};
+    glm::dvec3 apply(const glm::dvec3& p) const { return p.x * rows[0] + p.y * rows[1] + p.z * rows[2] + rows[3]; }
+    glm::dvec3 applyLinear(const glm::dvec3& v) const { return v.x * rows[0] + v.y * rows[1] + v.z * rows[2]; }
+    double determinant() const;
+};
+
+// A 16-bit heightmap over one chunk square (spec: sample (i, j) at chunk-local
+// x = i*S/(N-1), z = j*S/(N-1); two triangles per cell split from (i,j) to (i+1,j+1)).
+struct Heightfield {
+    int n = 0;                    // samples per side, >= 2
+    double size = 0.0;            // chunk size S, metres
+    std::vector<double> heights;  // n*n, row-major: heights[j*n + i], metres
+    double at(int i, int j) const { return heights[size_t(j) * size_t(n) + size_t(i)]; }
+    // Height of the triangulated surface at chunk-local (x, z), clamped to the square.
+    double heightAt(double x, double z) const;
+    // Triangles of the surface, chunk-local, front faces up (counter-clockwise from above).
+    Mesh toMesh() const;
+};
+
+// One <model> or <terrain> child of a chunk's root element.
+struct ChunkObject {
+    enum class Kind { Model, Terrain };
+    Kind kind = Kind::Model;
+    int elementIndex = 0;  // among the root's model/terrain children, document order
+    int line = 0;          // line of the element in the chunk file
+    std::string resource;  // as written (relative to the resource root)
+    std::string uuid;      // models; may be empty
+    RowTransform transform;  // chunk-local placement (identity for terrain)
+    bool castsShadow = true;
+    // Set when the object could not be used (bad transform, missing or bad resource):
+    // it is then neither occluder nor receiver, and its <shadow> is left untouched.
+    bool skipped = false;
+    std::string skipReason;
+    std::shared_ptr<const Mesh> mesh;              // models, when loaded
+    std::shared_ptr<const Heightfield> heightfield;  // terrain, when loaded
+};
+
+struct ChunkFile {
+    std::string path;
+    ChunkCoord coord;
+    std::vector<ChunkObject> objects;
+};
+
+// A warning about input the bake went on without (file, line, what was done).
+struct Diagnostic {
+    std::string file;
+    int line = 0;
+    std::string message;  // what is wrong and what the tool did, e.g. "...; object skipped"
+    std::string what() const { return file + (line > 0 ? ":" + std::to_string(line) : "") + ": " + message; }
+};
+
+struct Space {
+    SpaceSettings settings;
+    std::map<ChunkCoord, ChunkFile> chunks;
+    std::vector<Diagnostic> diagnostics;  // objects skipped, files ignored
+};
+
+// Reads space.xml. `resourceRootOverride` (from --res) wins over <resourceRoot>.
+Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std::string& resourceRootOverride);
+
+// Reads one chunk file's model/terrain elements. Malformed XML is an error (the bake stops:
+// a file it cannot parse is a file it cannot safely rewrite); a bad object (transform,
+// missing resource element) is marked skipped with a diagnostic.
+Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std::vector<Diagnostic>& diagnostics);
+
+// Loads a model resource: a .model XML (visual mesh + primitiveGroup overrides) or a mesh
+// file named directly. Errors name the file and line.
+Expected<Mesh> loadModelResource(const std::string& path);
+
+// Loads a .terrain file and its 16-bit grey PNG. 8-bit, non-square or N < 2 maps are errors.
+Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkSize);
+
+// Reads space.xml and every chunk file of the space (or only those in `only` plus their
+// neighbours), loading each resource once. Files named *.chunk that are not valid chunk
+// names are reported and ignored.
+Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resourceRootOverride,
+                          const std::vector<ChunkCoord>* only = nullptr);
+
+}  // namespace shadowcull

@@ -1,0 +1,499 @@
+// Readers for space.xml, chunk files, .model and .terrain resources
+// (../shared/spec/scene-format.md). Every error names the file and line.
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <csetjmp>
+#include <filesystem>
+#include <set>
+
+#include <glm/geometric.hpp>
+#include <png.h>
+#include <tinyxml2.h>
+
+#include "core/scene.h"
+
+namespace fs = std::filesystem;
+
+namespace shadowcull {
+
+const char* lightTypeName(LightType type) {
+    switch (type) {
+        case LightType::Directional: return "directional";
+        case LightType::Point: return "point";
+        case LightType::Spot: return "spot";
+    }
+    return "?";
+}
+
+double RowTransform::determinant() const {
+    const glm::dvec3& a = rows[0];
+    const glm::dvec3& b = rows[1];
+    const glm::dvec3& c = rows[2];
+    return a.x * (b.y * c.z - b.z * c.y) - a.y * (b.x * c.z - b.z * c.x) + a.z * (b.x * c.y - b.y * c.x);
+}
+
+std::optional<ChunkCoord> parseChunkName(const std::string& fileName) {
+    // Exactly 8 hex digits, 'o', ".chunk".
+    if (fileName.size() != 15 || fileName.compare(8, 7, "o.chunk") != 0) return std::nullopt;
+    auto hex4 = [&](size_t at, int32_t& out) {
+        unsigned v = 0;
+        for (size_t k = at; k < at + 4; ++k) {
+            int c = std::tolower(static_cast<unsigned char>(fileName[k]));
+            int d = (c >= '0' && c <= '9') ? c - '0' : (c >= 'a' && c <= 'f') ? c - 'a' + 10 : -1;
+            if (d < 0) return false;
+            v = v * 16 + unsigned(d);
+        }
+        out = static_cast<int16_t>(static_cast<uint16_t>(v));  // two's complement
+        return true;
+    };
+    ChunkCoord c;
+    if (!hex4(0, c.x) || !hex4(4, c.z)) return std::nullopt;
+    return c;
+}
+
+std::string chunkFileName(ChunkCoord c) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%04x%04xo.chunk", unsigned(uint16_t(c.x)), unsigned(uint16_t(c.z)));
+    return buf;
+}
+
+double Heightfield::heightAt(double x, double z) const {
+    // Cell coordinates; the surface is two triangles per cell split along (i,j)-(i+1,j+1).
+    const double cell = size / double(n - 1);
+    double fx = std::clamp(x / cell, 0.0, double(n - 1));
+    double fz = std::clamp(z / cell, 0.0, double(n - 1));
+    int i = std::min(int(fx), n - 2);
+    int j = std::min(int(fz), n - 2);
+    double u = fx - i, v = fz - j;
+    double h00 = at(i, j), h10 = at(i + 1, j), h01 = at(i, j + 1), h11 = at(i + 1, j + 1);
+    // Triangle (i,j),(i+1,j),(i+1,j+1) holds u >= v; (i,j),(i+1,j+1),(i,j+1) holds v >= u.
+    if (u >= v) return h00 + u * (h10 - h00) + v * (h11 - h10);
+    return h00 + v * (h01 - h00) + u * (h11 - h01);
+}
+
+Mesh Heightfield::toMesh() const {
+    Mesh m;
+    const double cell = size / double(n - 1);
+    m.positions.reserve(size_t(n) * size_t(n));
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) m.positions.emplace_back(i * cell, at(i, j), j * cell);
+    auto idx = [&](int i, int j) { return uint32_t(j * n + i); };
+    for (int j = 0; j + 1 < n; ++j)
+        for (int i = 0; i + 1 < n; ++i) {
+            // Counter-clockwise seen from +Y: (i,j) -> (i,j+1) -> (i+1,j+1) has normal +Y.
+            m.triangles.push_back({idx(i, j), idx(i, j + 1), idx(i + 1, j + 1)});
+            m.triangles.push_back({idx(i, j), idx(i + 1, j + 1), idx(i + 1, j)});
+        }
+    m.triangleGroup.assign(m.triangles.size(), 0);
+    m.groups.push_back(PrimitiveGroup{"terrain", false, false});
+    return m;
+}
+
+namespace {
+
+std::string trim(const char* s) {
+    if (!s) return {};
+    std::string t(s);
+    size_t a = t.find_first_not_of(" \t\r\n");
+    if (a == std::string::npos) return {};
+    size_t b = t.find_last_not_of(" \t\r\n");
+    return t.substr(a, b - a + 1);
+}
+
+Error bad(const std::string& file, int line, const std::string& msg) {
+    return makeError(ErrorKind::BadInput, file, line, msg);
+}
+
+// Parses `count` finite doubles separated by white space; nothing else may follow.
+Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, double* out, int count) {
+    std::string text = trim(e->GetText());
+    const char* p = text.c_str();
+    for (int k = 0; k < count; ++k) {
+        char* end = nullptr;
+        while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r') ++p;
+        out[k] = std::strtod(p, &end);
+        if (end == p)
+            return bad(file, e->GetLineNum(),
+                       "<" + std::string(e->Name()) + "> expects " + std::to_string(count) + " number(s), got '" + text + "'");
+        if (!std::isfinite(out[k]))
+            return bad(file, e->GetLineNum(), "<" + std::string(e->Name()) + "> has a non-finite value '" + text + "'");
+        p = end;
+    }
+    while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r') ++p;
+    if (*p != '\0')
+        return bad(file, e->GetLineNum(), "<" + std::string(e->Name()) + "> has trailing text in '" + text + "'");
+    return Status::ok();
+}
+
+Status parseVec3(const std::string& file, const tinyxml2::XMLElement* e, glm::dvec3& v) {
+    double d[3];
+    Status s = parseNumbers(file, e, d, 3);
+    if (s) v = glm::dvec3(d[0], d[1], d[2]);
+    return s;
+}
+
+Status parseDouble(const std::string& file, const tinyxml2::XMLElement* e, double& v) {
+    return parseNumbers(file, e, &v, 1);
+}
+
+Status parseBool(const std::string& file, const tinyxml2::XMLElement* e, bool& v) {
+    std::string t = trim(e->GetText());
+    std::transform(t.begin(), t.end(), t.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (t == "true" || t == "1") v = true;
+    else if (t == "false" || t == "0") v = false;
+    else return bad(file, e->GetLineNum(), "<" + std::string(e->Name()) + "> expects true or false, got '" + t + "'");
+    return Status::ok();
+}
+
+// Loads an XML file; a syntax error names the line tinyxml2 reports.
+Status loadXml(const std::string& path, tinyxml2::XMLDocument& doc, ErrorKind missingKind = ErrorKind::MissingResource) {
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) return makeError(missingKind, path, 0, std::string("cannot open: ") + std::strerror(errno));
+    tinyxml2::XMLError rc = doc.LoadFile(f);
+    std::fclose(f);
+    if (rc != tinyxml2::XML_SUCCESS) {
+        const char* s = doc.ErrorStr();
+        return bad(path, doc.ErrorLineNum(), std::string("malformed XML: ") + (s ? s : doc.ErrorName()));
+    }
+    if (!doc.RootElement()) return bad(path, 1, "no root element");
+    return Status::ok();
+}
+
+Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* le) {
+    Light L;
+    L.line = le->GetLineNum();
+    bool hasType = false, hasRange = false, hasCone = false, hasPosition = false, hasDirection = false;
+    for (const tinyxml2::XMLElement* e = le->FirstChildElement(); e; e = e->NextSiblingElement()) {
+        std::string n = e->Name();
+        Status s;
+        if (n == "name") L.name = trim(e->GetText());
+        else if (n == "type") {
+            std::string t = trim(e->GetText());
+            hasType = true;
+            if (t == "directional") L.type = LightType::Directional;
+            else if (t == "point") L.type = LightType::Point;
+            else if (t == "spot") L.type = LightType::Spot;
+            else return bad(file, e->GetLineNum(), "unknown light type '" + t + "' (directional, point or spot)");
+        } else if (n == "direction") { s = parseVec3(file, e, L.direction); hasDirection = true; }
+        else if (n == "position") { s = parseVec3(file, e, L.position); hasPosition = true; }
+        else if (n == "range") { s = parseDouble(file, e, L.range); hasRange = true; }
+        else if (n == "coneAngle") { s = parseDouble(file, e, L.coneHalfAngleDeg); hasCone = true; }
+        else if (n == "bias") s = parseDouble(file, e, L.bias);
+        else if (n == "slopeBias") s = parseDouble(file, e, L.slopeBias);
+        else if (n == "filterRadius") s = parseDouble(file, e, L.filterRadius);
+        if (!s) return s.error();
+    }
+    const std::string who = "light '" + L.name + "'";
+    if (!hasType) return bad(file, L.line, who + " has no <type>");
+    if (L.type != LightType::Point) {
+        if (!hasDirection) return bad(file, L.line, who + " needs a <direction>");
+        double len = glm::length(L.direction);
+        if (!(len > 0.0) || !std::isfinite(len)) return bad(file, L.line, who + " has a zero <direction>");
+        L.direction /= len;
+    }
+    if (L.type != LightType::Directional) {
+        if (!hasPosition) return bad(file, L.line, who + " needs a <position>");
+        if (!hasRange || !(L.range > 0.0)) return bad(file, L.line, who + " needs a <range> > 0");
+    }
+    if (L.type == LightType::Spot && (!hasCone || !(L.coneHalfAngleDeg > 0.0) || L.coneHalfAngleDeg > 90.0))
+        return bad(file, L.line, who + " needs a <coneAngle> (half-angle, degrees) in (0, 90]");
+    if (L.bias < 0 || L.slopeBias < 0 || L.filterRadius < 0)
+        return bad(file, L.line, who + ": bias, slopeBias and filterRadius must not be negative");
+    return L;
+}
+
+}  // namespace
+
+Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std::string& resourceRootOverride) {
+    SpaceSettings st;
+    st.spaceDir = spaceDir;
+    const std::string file = (fs::path(spaceDir) / "space.xml").string();
+    tinyxml2::XMLDocument doc;
+    if (Status s = loadXml(file, doc, ErrorKind::BadInput); !s) return s.error();
+    std::string resourceRoot;
+    for (const tinyxml2::XMLElement* e = doc.RootElement()->FirstChildElement(); e; e = e->NextSiblingElement()) {
+        std::string n = e->Name();
+        Status s;
+        if (n == "chunkSize") {
+            s = parseDouble(file, e, st.chunkSize);
+            if (s && !(st.chunkSize > 0)) return bad(file, e->GetLineNum(), "<chunkSize> must be > 0");
+        } else if (n == "terrainTolerance") {
+            s = parseDouble(file, e, st.terrainTolerance);
+            if (s && st.terrainTolerance < 0) return bad(file, e->GetLineNum(), "<terrainTolerance> must not be negative");
+        } else if (n == "resourceRoot") {
+            resourceRoot = trim(e->GetText());
+        } else if (n == "neighbours") {
+            auto attr = [&](const char* a, int& v) -> Status {
+                const char* t = e->Attribute(a);
+                if (!t) return Status::ok();
+                char* end = nullptr;
+                long x = std::strtol(t, &end, 10);
+                if (end == t || *end || x < 0 || x > 64)
+                    return bad(file, e->GetLineNum(), std::string("<neighbours ") + a + "> expects 0..64");
+                v = int(x);
+                return Status::ok();
+            };
+            if (e->FirstAttribute()) {
+                for (auto [a, v] : {std::pair<const char*, int*>{"left", &st.neighbours.left}, {"right", &st.neighbours.right},
+                                    {"top", &st.neighbours.top}, {"bottom", &st.neighbours.bottom}})
+                    if (Status as = attr(a, *v); !as) return as.error();
+            }
+            if (!trim(e->GetText()).empty()) {
+                double d = 0;
+                s = parseDouble(file, e, d);
+                if (s && (d < 0 || d > 64 || d != std::floor(d)))
+                    return bad(file, e->GetLineNum(), "<neighbours> expects a whole number 0..64");
+                if (s) st.neighbours = Neighbours{int(d), int(d), int(d), int(d)};
+            }
+        } else if (n == "light") {
+            if (int(st.lights.size()) == kMaxLights)
+                return bad(file, e->GetLineNum(), "more than 32 lights (a mask has 32 bits)");
+            Expected<Light> L = readLight(file, e);
+            if (!L) return L.error();
+            st.lights.push_back(*L);
+        }
+        if (!s) return s.error();
+    }
+    if (!resourceRootOverride.empty()) resourceRoot = resourceRootOverride;
+    if (resourceRoot.empty()) st.resourceRoot = spaceDir;
+    else if (fs::path(resourceRoot).is_absolute() || !resourceRootOverride.empty()) st.resourceRoot = resourceRoot;
+    else st.resourceRoot = (fs::path(spaceDir) / resourceRoot).string();
+    return st;
+}
+
+Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std::vector<Diagnostic>& diagnostics) {
+    ChunkFile cf;
+    cf.path = path;
+    cf.coord = coord;
+    tinyxml2::XMLDocument doc(true, tinyxml2::PRESERVE_WHITESPACE);
+    if (Status s = loadXml(path, doc, ErrorKind::BadInput); !s) return s.error();
+    int index = 0;
+    for (const tinyxml2::XMLElement* e = doc.RootElement()->FirstChildElement(); e; e = e->NextSiblingElement()) {
+        std::string n = e->Name();
+        if (n != "model" && n != "terrain") continue;
+        ChunkObject o;
+        o.kind = n == "model" ? ChunkObject::Kind::Model : ChunkObject::Kind::Terrain;
+        o.elementIndex = index++;
+        o.line = e->GetLineNum();
+        auto skip = [&](int line, const std::string& why) {
+            if (o.skipped) return;
+            o.skipped = true;
+            o.skipReason = why;
+            diagnostics.push_back({path, line, why + "; " + n + " skipped (its <shadow> is left as it was)"});
+        };
+        bool seenTransform = false;
+        for (const tinyxml2::XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
+            std::string cn = c->Name();
+            if (cn == "resource") o.resource = trim(c->GetText());
+            else if (cn == "uuid") o.uuid = trim(c->GetText());
+            else if (cn == "castsShadow" && o.kind == ChunkObject::Kind::Model) {
+                if (Status s = parseBool(path, c, o.castsShadow); !s) skip(c->GetLineNum(), s.error().message);
+            } else if (cn == "transform" && o.kind == ChunkObject::Kind::Model) {
+                seenTransform = true;
+                const char* rowNames[4] = {"row0", "row1", "row2", "row3"};
+                for (int r = 0; r < 4; ++r) {
+                    const tinyxml2::XMLElement* re = c->FirstChildElement(rowNames[r]);
+                    if (!re) { skip(c->GetLineNum(), std::string("<transform> has no <") + rowNames[r] + ">"); continue; }
+                    if (Status s = parseVec3(path, re, o.transform.rows[size_t(r)]); !s)
+                        skip(re->GetLineNum(), s.error().message);
+                }
+                double det = o.transform.determinant();
+                if (!o.skipped && !(std::abs(det) > 1e-12))
+                    skip(c->GetLineNum(), "singular transform (determinant " + std::to_string(det) + ")");
+            }
+        }
+        if (o.resource.empty()) skip(o.line, "<" + n + "> has no <resource>");
+        if (o.kind == ChunkObject::Kind::Model && !seenTransform && !o.skipped) {
+            // No transform: identity at the chunk origin (a user would expect that).
+        }
+        cf.objects.push_back(std::move(o));
+    }
+    return cf;
+}
+
+Expected<Mesh> loadModelResource(const std::string& path) {
+    std::string ext = fs::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext != ".model") return loadMeshFile(path);
+    tinyxml2::XMLDocument doc;
+    if (Status s = loadXml(path, doc); !s) return s.error();
+    const tinyxml2::XMLElement* root = doc.RootElement();
+    const tinyxml2::XMLElement* visual = root->FirstChildElement("visual");
+    if (!visual || trim(visual->GetText()).empty()) return bad(path, root->GetLineNum(), "<model> has no <visual>");
+    std::string meshPath = (fs::path(path).parent_path() / trim(visual->GetText())).string();
+    Expected<Mesh> mesh = loadMeshFile(meshPath);
+    if (!mesh) return mesh.error();
+    for (const tinyxml2::XMLElement* g = root->FirstChildElement("primitiveGroup"); g;
+         g = g->NextSiblingElement("primitiveGroup")) {
+        int index = -1;
+        if (g->QueryIntAttribute("index", &index) != tinyxml2::XML_SUCCESS || index < 0)
+            return bad(path, g->GetLineNum(), "<primitiveGroup> needs index=\"N\" (N >= 0)");
+        if (size_t(index) >= mesh->groups.size())
+            return bad(path, g->GetLineNum(), "<primitiveGroup index=\"" + std::to_string(index) + "\"> but " + meshPath +
+                                                  " has " + std::to_string(mesh->groups.size()) + " group(s)");
+        PrimitiveGroup& pg = mesh->groups[size_t(index)];
+        for (auto [attr, flag] : {std::pair<const char*, bool*>{"alphaTest", &pg.alphaTested}, {"doubleSided", &pg.doubleSided}}) {
+            const char* t = g->Attribute(attr);
+            if (!t) continue;
+            std::string v = t;
+            if (v == "true" || v == "1") *flag = true;
+            else if (v == "false" || v == "0") *flag = false;
+            else return bad(path, g->GetLineNum(), std::string(attr) + " expects true or false, got '" + v + "'");
+        }
+    }
+    return mesh;
+}
+
+namespace {
+
+struct PngReader {
+    png_structp png = nullptr;
+    png_infop info = nullptr;
+    std::FILE* f = nullptr;
+    ~PngReader() {
+        if (png) png_destroy_read_struct(&png, info ? &info : nullptr, nullptr);
+        if (f) std::fclose(f);
+    }
+};
+
+}  // namespace
+
+Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkSize) {
+    tinyxml2::XMLDocument doc;
+    if (Status s = loadXml(path, doc); !s) return s.error();
+    const tinyxml2::XMLElement* root = doc.RootElement();
+    const tinyxml2::XMLElement* he = root->FirstChildElement("heights");
+    const tinyxml2::XMLElement* mn = root->FirstChildElement("minHeight");
+    const tinyxml2::XMLElement* mx = root->FirstChildElement("maxHeight");
+    if (!he || !mn || !mx) return bad(path, root->GetLineNum(), "<terrain> needs <heights>, <minHeight> and <maxHeight>");
+    double minH = 0, maxH = 0;
+    if (Status s = parseDouble(path, mn, minH); !s) return s.error();
+    if (Status s = parseDouble(path, mx, maxH); !s) return s.error();
+    if (maxH < minH) return bad(path, mx->GetLineNum(), "<maxHeight> is below <minHeight>");
+    const std::string png = (fs::path(path).parent_path() / trim(he->GetText())).string();
+
+    PngReader r;
+    r.f = std::fopen(png.c_str(), "rb");
+    if (!r.f) return makeError(ErrorKind::MissingResource, png, 0, std::string("cannot open heightmap: ") + std::strerror(errno));
+    unsigned char sig[8];
+    if (std::fread(sig, 1, 8, r.f) != 8 || png_sig_cmp(sig, 0, 8)) return bad(png, 0, "not a PNG file");
+    r.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+    r.info = r.png ? png_create_info_struct(r.png) : nullptr;
+    if (!r.info) return makeError(ErrorKind::Internal, png, 0, "libpng initialisation failed");
+    Heightfield hf;
+    hf.size = chunkSize;
+    std::vector<png_byte> data;
+    // libpng reports corrupt or truncated data by longjmp; everything below lives in `hf`,
+    // `data` and `r`, which the return after the jump cleans up.
+    if (setjmp(png_jmpbuf(r.png))) return bad(png, 0, "corrupt or truncated PNG data");
+    png_init_io(r.png, r.f);
+    png_set_sig_bytes(r.png, 8);
+    png_read_info(r.png, r.info);
+    png_uint_32 w = png_get_image_width(r.png, r.info), h = png_get_image_height(r.png, r.info);
+    int depth = png_get_bit_depth(r.png, r.info), color = png_get_color_type(r.png, r.info);
+    if (color != PNG_COLOR_TYPE_GRAY || depth != 16)
+        return bad(png, 0, "heightmap must be 16-bit grey (found " + std::to_string(depth) + "-bit, colour type " +
+                               std::to_string(color) + "); terrain skipped");
+    if (w != h || w < 2)
+        return bad(png, 0, "heightmap must be square with N >= 2 samples (found " + std::to_string(w) + " x " +
+                               std::to_string(h) + ")");
+    if (w > 16385) return bad(png, 0, "heightmap larger than 16385 x 16385");
+    hf.n = int(w);
+    const size_t rowBytes = png_get_rowbytes(r.png, r.info);
+    data.resize(rowBytes * h);
+    std::vector<png_bytep> rows(h);
+    for (png_uint_32 j = 0; j < h; ++j) rows[j] = data.data() + j * rowBytes;
+    png_read_image(r.png, rows.data());
+    hf.heights.resize(size_t(w) * h);
+    const double scale = (maxH - minH) / 65535.0;
+    for (png_uint_32 j = 0; j < h; ++j)
+        for (png_uint_32 i = 0; i < w; ++i) {
+            unsigned v = (unsigned(rows[j][2 * i]) << 8) | rows[j][2 * i + 1];  // PNG is big-endian
+            hf.heights[size_t(j) * w + i] = minH + double(v) * scale;
+        }
+    return hf;
+}
+
+Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resourceRootOverride,
+                          const std::vector<ChunkCoord>* only) {
+    Space space;
+    Expected<SpaceSettings> st = readSpaceSettings(spaceDir, resourceRootOverride);
+    if (!st) return st.error();
+    space.settings = std::move(*st);
+    const SpaceSettings& S = space.settings;
+
+    // Which chunks to read: all, or the named ones and their neighbours.
+    std::set<ChunkCoord> wanted;
+    if (only) {
+        for (ChunkCoord c : *only)
+            for (int dx = -S.neighbours.left; dx <= S.neighbours.right; ++dx)
+                for (int dz = -S.neighbours.bottom; dz <= S.neighbours.top; ++dz) wanted.insert({c.x + dx, c.z + dz});
+    }
+    std::error_code ec;
+    std::vector<fs::path> files;
+    for (const fs::directory_entry& de : fs::directory_iterator(spaceDir, ec))
+        if (de.path().extension() == ".chunk") files.push_back(de.path());
+    if (ec) return makeError(ErrorKind::BadInput, spaceDir, 0, "cannot list the space directory: " + ec.message());
+    std::sort(files.begin(), files.end());
+    for (const fs::path& p : files) {
+        std::optional<ChunkCoord> c = parseChunkName(p.filename().string());
+        if (!c) {
+            space.diagnostics.push_back({p.string(), 0, "not a chunk name (XXXXZZZZo.chunk, 16-bit hex); file ignored"});
+            continue;
+        }
+        if (only && !wanted.count(*c)) continue;
+        Expected<ChunkFile> cf = readChunkFile(p.string(), *c, space.diagnostics);
+        if (!cf) return cf.error();
+        space.chunks.emplace(*c, std::move(*cf));
+    }
+
+    // Load each resource once; a bad resource skips every object that uses it, with one
+    // message per resource and one per object.
+    std::map<std::string, Expected<std::shared_ptr<const Mesh>>> meshes;
+    std::map<std::string, Expected<std::shared_ptr<const Heightfield>>> terrains;
+    for (auto& [coord, cf] : space.chunks) {
+        for (ChunkObject& o : cf.objects) {
+            if (o.skipped) continue;
+            const std::string full = (fs::path(S.resourceRoot) / o.resource).lexically_normal().string();
+            std::optional<Error> err;
+            if (o.kind == ChunkObject::Kind::Model) {
+                auto it = meshes.find(full);
+                if (it == meshes.end()) {
+                    Expected<Mesh> m = loadModelResource(full);
+                    Expected<std::shared_ptr<const Mesh>> v =
+                        m ? Expected<std::shared_ptr<const Mesh>>(std::make_shared<const Mesh>(std::move(*m)))
+                          : Expected<std::shared_ptr<const Mesh>>(m.error());
+                    if (!m) space.diagnostics.push_back({m.error().file, m.error().line, m.error().message});
+                    it = meshes.emplace(full, std::move(v)).first;
+                }
+                if (it->second) o.mesh = *it->second;
+                else err = it->second.error();
+            } else {
+                auto it = terrains.find(full);
+                if (it == terrains.end()) {
+                    Expected<Heightfield> h = loadTerrainResource(full, S.chunkSize);
+                    Expected<std::shared_ptr<const Heightfield>> v =
+                        h ? Expected<std::shared_ptr<const Heightfield>>(std::make_shared<const Heightfield>(std::move(*h)))
+                          : Expected<std::shared_ptr<const Heightfield>>(h.error());
+                    if (!h) space.diagnostics.push_back({h.error().file, h.error().line, h.error().message});
+                    it = terrains.emplace(full, std::move(v)).first;
+                }
+                if (it->second) o.heightfield = *it->second;
+                else err = it->second.error();
+            }
+            if (err) {
+                o.skipped = true;
+                o.skipReason = "resource " + o.resource + " could not be loaded";
+                space.diagnostics.push_back({cf.path, o.line, o.skipReason + "; object skipped (its <shadow> is left as it was)"});
+            }
+        }
+    }
+    return space;
+}
+
+}  // namespace shadowcull

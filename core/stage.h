@@ -1,0 +1,58 @@
+// The stage interface: a stage looks at a bake window and the chunk's verdict table and
+// turns some undecided bits into kept (with a witness) or culled (with a proof). Stages
+// run cheap to expensive; each skips bits already decided.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+#include "core/verdict.h"
+#include "core/window.h"
+
+namespace shadowcull {
+
+struct StageStats {
+    double seconds = 0.0;
+    uint64_t raysCast = 0;
+    uint64_t provedKept = 0;
+    uint64_t provedCulled = 0;
+    void add(const StageStats& o) {
+        seconds += o.seconds;
+        raysCast += o.raysCast;
+        provedKept += o.provedKept;
+        provedCulled += o.provedCulled;
+    }
+};
+
+class Stage {
+public:
+    virtual ~Stage() = default;
+    virtual const char* name() const = 0;
+    // Errors from the stage's library (Embree, CGAL, GL) come back as ErrorKind::Internal;
+    // the table then holds only the decisions made before the failure.
+    virtual Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) = 0;
+};
+
+// Sets up the verdict table of the window's centre chunk: one row per model/terrain element
+// (skipped ones get no groups), all undecided.
+ChunkVerdicts makeChunkVerdicts(const Space& space, const BakeWindow& window);
+
+// The first, cheapest stage (core): decides what the input alone settles, exactly.
+//  - castsShadow false: culled (the engine never renders it into a shadow map).
+//  - a group with no triangle of non-zero extent (every triangle repeats a vertex): culled.
+//  - a point or spot light whose range sphere or cone cannot reach any point of the
+//    group's bounding box: culled (condition 3 needs p within range and cone).
+// Distances are compared with a margin far above double rounding, so only clear cases
+// are culled; everything else is left undecided.
+class ReachStage : public Stage {
+public:
+    const char* name() const override { return "reach"; }
+    Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
+};
+
+// Lights that can reach any undecided group of the chunk: the others need no rays.
+std::vector<bool> lightsWithUndecided(const ChunkVerdicts& verdicts);
+
+}  // namespace shadowcull

@@ -1,0 +1,73 @@
+// A bake window: the centre chunk being baked plus its loaded neighbours, in one
+// window-local frame (metres, double). The frame's origin is the centre chunk's origin
+// (gx*S, oy, gz*S), oy being the rounded middle height of the centre chunk's content,
+// so a space moved by whole chunks (e.g. 100 km) or lifted (e.g. 5 km) gives the
+// same window-local numbers and so the same verdicts.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/common.hpp>
+#include <glm/vec3.hpp>
+
+#include "core/scene.h"
+
+namespace shadowcull {
+
+struct Aabb {
+    glm::dvec3 min{1e300}, max{-1e300};
+    void extend(const glm::dvec3& p) { min = glm::min(min, p); max = glm::max(max, p); }
+    void extend(const Aabb& b) { min = glm::min(min, b.min); max = glm::max(max, b.max); }
+    bool empty() const { return min.x > max.x; }
+};
+
+// One loaded model or terrain of the window.
+struct WindowObject {
+    ChunkObject::Kind kind = ChunkObject::Kind::Model;
+    const ChunkObject* source = nullptr;  // the chunk file's object
+    ChunkCoord chunk;
+    bool centre = false;              // in the chunk being baked (gets verdicts)
+    const Mesh* mesh = nullptr;       // model-local (terrain: chunk-local) triangles
+    RowTransform lsTransform;         // mesh coordinates -> window-local
+    bool flipsWinding = false;        // lsTransform mirrors: fronts are the other side
+    const Heightfield* heightfield = nullptr;  // terrain only
+    glm::dvec3 lsTerrainOrigin{0.0};           // terrain only: its chunk origin, window-local
+    Aabb lsBounds;                    // window-local bounds of all triangles
+    std::string label;                // "0000ffffo.chunk model #2 (uuid)" for reports
+};
+
+struct BakeWindow {
+    ChunkCoord centre;
+    std::string centrePath;
+    glm::dvec3 wsOrigin{0.0};         // world position of the window-local origin
+    double chunkSize = 100.0;
+    double terrainTolerance = 0.01;
+    std::vector<WindowObject> objects;
+    std::vector<Light> lsLights;      // positions window-local, directions unchanged
+    Aabb lsBounds;                    // every loaded triangle
+    Aabb lsCentreBounds;              // the centre chunk's triangles
+    bool hasAlphaTested = false;      // any alpha-tested group loaded: the alpha rule applies
+    bool hasTerrain = false;          // any terrain loaded: the terrain rule applies
+    int skippedObjects = 0;           // objects of the window that could not be loaded
+
+    // Lowest terrain surface over window-local (x, z), or nothing where no terrain lies.
+    // (The lowest, so that a receiver is only discounted when it is under every terrain.)
+    std::optional<double> lsTerrainHeight(double x, double z) const;
+};
+
+// Builds the window around `centre`. Terrain meshes are made once per heightfield and kept
+// in `terrainMeshes` (owned by the caller, reused across windows).
+BakeWindow buildWindow(const Space& space, ChunkCoord centre,
+                       std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>>& terrainMeshes);
+
+// Exact test for a triangle with no area in the sense used everywhere in the project:
+// two of its vertices are the same point. (Collinear but distinct vertices are kept: a
+// renderer may still rasterise them, so no verdict of 0 may rest on skipping them.)
+inline bool hasRepeatedVertex(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+    return a == b || b == c || a == c;
+}
+
+}  // namespace shadowcull

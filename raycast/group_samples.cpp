@@ -1,0 +1,88 @@
+#include "raycast/group_samples.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+namespace shadowcull::raycast {
+
+namespace {
+
+// Van der Corput radical inverse in base 2: 0, 1/2, 1/4, 3/4, ... (each prefix of length
+// 2^k is one point per stratum of width 2^-k).
+double radicalInverse2(uint32_t i) {
+    i = (i << 16) | (i >> 16);
+    i = ((i & 0x00ff00ffu) << 8) | ((i & 0xff00ff00u) >> 8);
+    i = ((i & 0x0f0f0f0fu) << 4) | ((i & 0xf0f0f0f0u) >> 4);
+    i = ((i & 0x33333333u) << 2) | ((i & 0xccccccccu) >> 2);
+    i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
+    return double(i) * (1.0 / 4294967296.0);
+}
+
+struct Tri {
+    glm::dvec3 a, b, c;
+};
+
+}  // namespace
+
+std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, int areaSamples, int maxFeatureSamples) {
+    const Mesh& mesh = *object.mesh;
+    std::vector<Tri> tris;
+    std::vector<double> cumulative;  // cumulative area
+    double total = 0.0;
+    for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+        if (mesh.triangleGroup[t] != group) continue;
+        const auto& i = mesh.triangles[t];
+        const glm::dvec3 &a = mesh.positions[i[0]], &b = mesh.positions[i[1]], &c = mesh.positions[i[2]];
+        if (hasRepeatedVertex(a, b, c)) continue;
+        Tri tri{object.lsTransform.apply(a), object.lsTransform.apply(b), object.lsTransform.apply(c)};
+        total += 0.5 * glm::length(glm::cross(tri.b - tri.a, tri.c - tri.a));
+        tris.push_back(tri);
+        cumulative.push_back(total);
+    }
+    std::vector<glm::dvec3> out;
+    if (tris.empty()) return out;
+    out.reserve(size_t(areaSamples) + size_t(maxFeatureSamples));
+
+    if (total > 0.0) {
+        const double offset = 0.5 / double(std::max(1, areaSamples));
+        for (int s = 0; s < areaSamples; ++s) {
+            double u = radicalInverse2(uint32_t(s)) + offset;
+            u = (u - std::floor(u)) * total;
+            size_t k = size_t(std::upper_bound(cumulative.begin(), cumulative.end(), u) - cumulative.begin());
+            k = std::min(k, tris.size() - 1);
+            const double before = k ? cumulative[k - 1] : 0.0;
+            const double area = cumulative[k] - before;
+            // First coordinate: where u falls inside this triangle's share (stratified);
+            // second: a golden-ratio sequence (well spread, deterministic).
+            const double v1 = area > 0 ? std::clamp((u - before) / area, 0.0, 1.0) : 0.5;
+            const double g = double(s) * 0.6180339887498949 + 0.5;
+            const double v2 = g - std::floor(g);
+            const double r = std::sqrt(v1);
+            const Tri& t = tris[k];
+            out.push_back((1 - r) * t.a + r * (1 - v2) * t.b + r * v2 * t.c);
+        }
+    }
+    // Features: vertices and edge midpoints, nudged into the triangle.
+    constexpr double e = 1e-3;
+    int features = 0;
+    for (const Tri& t : tris) {
+        if (features >= maxFeatureSamples) break;
+        const glm::dvec3 pts[6] = {
+            (1 - 2 * e) * t.a + e * t.b + e * t.c,
+            e * t.a + (1 - 2 * e) * t.b + e * t.c,
+            e * t.a + e * t.b + (1 - 2 * e) * t.c,
+            (0.5 - e / 2) * (t.a + t.b) + e * t.c,
+            (0.5 - e / 2) * (t.b + t.c) + e * t.a,
+            (0.5 - e / 2) * (t.c + t.a) + e * t.b,
+        };
+        for (const glm::dvec3& p : pts) {
+            if (features++ >= maxFeatureSamples) break;
+            out.push_back(p);
+        }
+    }
+    return out;
+}
+
+}  // namespace shadowcull::raycast

@@ -1,0 +1,387 @@
+// Witness rays (semantics.md, "The stages": raycast/). For each undecided (group, light),
+// rays from the light through sample points on the group; the all-hit traversal keeps the
+// nearest hits along each ray, and a ray is a witness when
+//   1. the first hit on the group comes before any opaque hit of another surface (p lit;
+//      alpha-tested groups are not opaque, the group's own triangles are p itself), with p
+//      within range and cone;
+//   2. a later hit q lies deeper than depth(p) + bias + slopeBias * tan(theta);
+//   3. q's surface faces the light or is two-sided, q is not under terrain by more than
+//      terrainTolerance, and q is within range and cone.
+// Every comparison carries a margin (kEps) on the side of "no witness", so rounding can
+// only turn a witness into an undecided bit, never create one.
+// Embree: I. Wald et al., "Embree: A Kernel Framework for Efficient CPU Ray Tracing",
+// ACM TOG 33(4), 2014. All-hit traversal with a context filter as in its "next hit" tutorial.
+
+#include "raycast/raycast_stage.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <unordered_map>
+
+#include <embree3/rtcore.h>
+#include <glm/geometric.hpp>
+#include <pmmintrin.h>
+#include <tbb/parallel_for.h>
+#include <xmmintrin.h>
+
+#include "raycast/group_samples.h"
+
+namespace shadowcull::raycast {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct Hit {
+    float t;
+    uint32_t object;  // index into BakeWindow::objects
+    uint32_t prim;    // triangle index in the object's mesh
+};
+
+// The context handed to Embree; the filter keeps the nearest `capacity` hits and rejects
+// every hit, so traversal visits all of them.
+struct HitCollector {
+    RTCIntersectContext ctx;  // first member: Embree passes &ctx back to the filter
+    Hit* hits = nullptr;
+    int capacity = 0;
+    int count = 0;
+};
+
+void collectAllHits(const RTCFilterFunctionNArguments* args) {
+    auto* hc = reinterpret_cast<HitCollector*>(args->context);
+    for (unsigned i = 0; i < args->N; ++i) {
+        if (!args->valid[i]) continue;
+        args->valid[i] = 0;  // reject: keep traversing
+        Hit h;
+        h.t = RTCRayN_tfar(args->ray, args->N, i);
+        const unsigned inst = RTCHitN_instID(args->hit, args->N, i, 0);
+        h.object = inst != RTC_INVALID_GEOMETRY_ID ? inst : RTCHitN_geomID(args->hit, args->N, i);
+        h.prim = RTCHitN_primID(args->hit, args->N, i);
+        bool dup = false;
+        for (int k = 0; k < hc->count && !dup; ++k) dup = hc->hits[k].object == h.object && hc->hits[k].prim == h.prim;
+        if (dup) continue;
+        // Insertion into the sorted array of the nearest `capacity` hits.
+        if (hc->count == hc->capacity) {
+            if (h.t >= hc->hits[hc->count - 1].t) continue;
+            --hc->count;
+        }
+        int k = hc->count++;
+        while (k > 0 && hc->hits[k - 1].t > h.t) {
+            hc->hits[k] = hc->hits[k - 1];
+            --k;
+        }
+        hc->hits[k] = h;
+    }
+}
+
+void enableFlushToZero() {
+    // Denormals in ray traversal cost ~100x per operation; the geometry never needs them.
+    _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
+    _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
+}
+
+}  // namespace
+
+struct RaycastStage::Impl {
+    RaycastOptions opt;
+    RTCDevice device = nullptr;
+    std::unordered_map<const Mesh*, RTCScene> prototypes;  // one per model resource, for the whole bake
+    std::mutex errorMutex;
+    std::string lastError;
+
+    ~Impl() {
+        for (auto& [mesh, scene] : prototypes) rtcReleaseScene(scene);
+        if (device) rtcReleaseDevice(device);
+    }
+
+    static void onError(void* user, RTCError code, const char* message) {
+        auto* self = static_cast<Impl*>(user);
+        std::lock_guard<std::mutex> lock(self->errorMutex);
+        self->lastError = "Embree error " + std::to_string(int(code)) + ": " + (message ? message : "");
+    }
+
+    Status takeError() {
+        std::lock_guard<std::mutex> lock(errorMutex);
+        if (lastError.empty()) return Status::ok();
+        Error e = makeError(ErrorKind::Internal, "", 0, lastError);
+        lastError.clear();
+        return e;
+    }
+
+    // Triangle geometry with vertices given by `place` (float, as Embree wants them).
+    template <class Place>
+    RTCGeometry makeTriangles(const Mesh& mesh, Place place) {
+        RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                              3 * sizeof(float), mesh.positions.size()));
+        auto* ix = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                  3 * sizeof(unsigned), mesh.triangles.size()));
+        if (!v || !ix) return geom;
+        for (size_t k = 0; k < mesh.positions.size(); ++k) {
+            glm::dvec3 p = place(mesh.positions[k]);
+            v[3 * k] = float(p.x);
+            v[3 * k + 1] = float(p.y);
+            v[3 * k + 2] = float(p.z);
+        }
+        for (size_t k = 0; k < mesh.triangles.size(); ++k)
+            for (int c = 0; c < 3; ++c) ix[3 * k + size_t(c)] = mesh.triangles[k][size_t(c)];
+        rtcCommitGeometry(geom);
+        return geom;
+    }
+
+    RTCScene prototype(const Mesh* mesh) {
+        auto it = prototypes.find(mesh);
+        if (it != prototypes.end()) return it->second;
+        RTCScene s = rtcNewScene(device);
+        rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+        RTCGeometry g = makeTriangles(*mesh, [](const glm::dvec3& p) { return p; });
+        rtcAttachGeometryByID(s, g, 0);
+        rtcReleaseGeometry(g);
+        rtcCommitScene(s);
+        prototypes.emplace(mesh, s);
+        return s;
+    }
+
+    RTCScene buildWindowScene(const BakeWindow& w) {
+        RTCScene scene = rtcNewScene(device);
+        rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+        for (size_t k = 0; k < w.objects.size(); ++k) {
+            const WindowObject& o = w.objects[k];
+            RTCGeometry g;
+            if (o.kind == ChunkObject::Kind::Terrain) {
+                g = makeTriangles(*o.mesh, [&](const glm::dvec3& p) { return o.lsTransform.apply(p); });
+            } else {
+                g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+                rtcSetGeometryInstancedScene(g, prototype(o.mesh));
+                // Column-major 3x4: the columns are our rows (p' = p.x r0 + p.y r1 + p.z r2 + r3).
+                float xfm[12];
+                for (int r = 0; r < 4; ++r)
+                    for (int c = 0; c < 3; ++c) xfm[3 * r + c] = float(o.lsTransform.rows[size_t(r)][c]);
+                rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
+                rtcCommitGeometry(g);
+            }
+            rtcAttachGeometryByID(scene, g, unsigned(k));
+            rtcReleaseGeometry(g);
+        }
+        rtcCommitScene(scene);
+        return scene;
+    }
+};
+
+RaycastStage::RaycastStage(RaycastOptions options) : impl_(std::make_unique<Impl>()) {
+    impl_->opt = options;
+    std::string config = options.threads > 0 ? "threads=" + std::to_string(options.threads) : "";
+    impl_->device = rtcNewDevice(config.c_str());
+    if (impl_->device) rtcSetDeviceErrorFunction(impl_->device, &Impl::onError, impl_.get());
+}
+
+RaycastStage::~RaycastStage() = default;
+
+namespace {
+
+// Everything one witness search needs about the window, in window-local double.
+struct Tracer {
+    const BakeWindow& w;
+    RTCScene scene;
+    const RaycastOptions& opt;
+    double eps;        // metres: margin on depth, range and terrain comparisons
+    double backDist;   // directional lights: ray origins this far before the sample
+
+    glm::dvec3 triangleNormal(const WindowObject& o, uint32_t prim) const {
+        const auto& tri = o.mesh->triangles[prim];
+        const glm::dvec3 a = o.lsTransform.apply(o.mesh->positions[tri[0]]);
+        const glm::dvec3 b = o.lsTransform.apply(o.mesh->positions[tri[1]]);
+        const glm::dvec3 c = o.lsTransform.apply(o.mesh->positions[tri[2]]);
+        glm::dvec3 n = glm::cross(b - a, c - a);
+        return o.flipsWinding ? -n : n;
+    }
+
+    const PrimitiveGroup& groupOf(const Hit& h) const {
+        const WindowObject& o = w.objects[h.object];
+        return o.mesh->groups[o.mesh->triangleGroup[h.prim]];
+    }
+
+    bool withinReach(const Light& L, const glm::dvec3& x) const {
+        if (L.type == LightType::Directional) return true;
+        const glm::dvec3 v = x - L.position;
+        const double d = glm::length(v);
+        if (!(d <= L.range - eps)) return false;
+        if (L.type == LightType::Spot) {
+            if (!(d > eps)) return false;
+            const double angle = std::acos(std::clamp(glm::dot(v / d, L.direction), -1.0, 1.0));
+            if (!(angle <= L.coneHalfAngleDeg * kPi / 180.0 - 1e-6)) return false;
+        }
+        return true;
+    }
+
+    // Traces one ray towards `target` on (object, group); returns a witness or nothing.
+    std::optional<Witness> tryRay(const Light& L, uint32_t object, uint32_t group, const glm::dvec3& target,
+                                  Hit* hitBuffer) const {
+        glm::dvec3 origin, dir;
+        double tfar;
+        if (L.type == LightType::Directional) {
+            dir = L.direction;
+            origin = target - dir * backDist;
+            tfar = 2 * backDist;
+        } else {
+            origin = L.position;
+            glm::dvec3 v = target - origin;
+            double d = glm::length(v);
+            if (!(d > eps)) return std::nullopt;
+            dir = v / d;
+            tfar = L.range;
+        }
+        HitCollector hc;
+        rtcInitIntersectContext(&hc.ctx);
+        hc.ctx.filter = &collectAllHits;
+        hc.hits = hitBuffer;
+        hc.capacity = opt.maxHitsPerRay;
+        RTCRayHit rh{};
+        rh.ray.org_x = float(origin.x);
+        rh.ray.org_y = float(origin.y);
+        rh.ray.org_z = float(origin.z);
+        rh.ray.dir_x = float(dir.x);
+        rh.ray.dir_y = float(dir.y);
+        rh.ray.dir_z = float(dir.z);
+        rh.ray.tnear = 0.0f;
+        rh.ray.tfar = float(tfar);
+        rh.ray.mask = 0xffffffffu;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene, &hc.ctx, &rh);
+
+        // p: the first hit on the group.
+        int ip = -1;
+        for (int k = 0; k < hc.count; ++k) {
+            const Hit& h = hitBuffer[k];
+            if (h.object == object && w.objects[h.object].mesh->triangleGroup[h.prim] == group) {
+                ip = k;
+                break;
+            }
+        }
+        if (ip < 0) return std::nullopt;
+        const double tp = hitBuffer[ip].t;
+        // p lit: no opaque surface of anything else before p or coincident with it.
+        for (int k = 0; k < hc.count && hitBuffer[k].t < tp + eps; ++k) {
+            const Hit& h = hitBuffer[k];
+            const bool sameGroup = h.object == object && w.objects[h.object].mesh->triangleGroup[h.prim] == group;
+            if (sameGroup) continue;
+            if (!w.hasAlphaTested || !groupOf(h).alphaTested) return std::nullopt;
+        }
+        const glm::dvec3 p = origin + dir * tp;
+        if (!withinReach(L, p)) return std::nullopt;
+
+        // q: any later hit that receives light, deeper than the bias.
+        for (int k = ip + 1; k < hc.count; ++k) {
+            const Hit& h = hitBuffer[k];
+            const double gap = double(h.t) - tp;
+            if (!(gap > L.bias + eps)) continue;
+            const WindowObject& ro = w.objects[h.object];
+            const PrimitiveGroup& rg = ro.mesh->groups[ro.mesh->triangleGroup[h.prim]];
+            glm::dvec3 n = triangleNormal(ro, h.prim);
+            const double nl = glm::length(n);
+            if (!(nl > 0)) continue;
+            const double cosFacing = glm::dot(n / nl, dir);  // < 0: the ray meets the front
+            if (!rg.twoSided() && !(cosFacing < -1e-6)) continue;
+            const double c = std::abs(cosFacing);
+            if (L.slopeBias > 0) {
+                if (!(c > 1e-6)) continue;
+                const double tanTheta = std::sqrt(std::max(0.0, 1 - c * c)) / c;
+                if (!(gap > L.bias + L.slopeBias * tanTheta + eps)) continue;
+            }
+            const glm::dvec3 q = origin + dir * double(h.t);
+            if (!withinReach(L, q)) continue;
+            if (w.hasTerrain && ro.kind != ChunkObject::Kind::Terrain) {
+                std::optional<double> ground = w.lsTerrainHeight(q.x, q.z);
+                if (ground && !(q.y >= *ground - w.terrainTolerance + eps)) continue;
+            }
+            Witness wit;
+            wit.wsOrigin = origin + w.wsOrigin;
+            wit.wsDirection = dir;
+            wit.wsP = p + w.wsOrigin;
+            wit.wsQ = q + w.wsOrigin;
+            wit.receiver = ro.label + " group " + std::to_string(ro.mesh->triangleGroup[h.prim]);
+            return wit;
+        }
+        return std::nullopt;
+    }
+};
+
+}  // namespace
+
+Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
+    const auto t0 = std::chrono::steady_clock::now();
+    Impl& im = *impl_;
+    if (!im.device) return makeError(ErrorKind::Internal, "", 0, "Embree device could not be created");
+
+    // Work: (centre object, group) with at least one undecided light.
+    struct Task {
+        size_t object;  // index into cv.objects
+        int group;
+    };
+    std::vector<Task> tasks;
+    for (size_t oi = 0; oi < cv.objects.size(); ++oi)
+        for (int g = 0; g < cv.objects[oi].groupCount; ++g)
+            for (int l = 0; l < cv.lightCount; ++l)
+                if (cv.at(oi, g, l).verdict == Verdict::Undecided) {
+                    tasks.push_back({oi, g});
+                    break;
+                }
+    if (tasks.empty()) return Status::ok();
+
+    RTCScene scene = nullptr;
+    try {
+        scene = im.buildWindowScene(window);
+        if (Status s = im.takeError(); !s) {
+            if (scene) rtcReleaseScene(scene);
+            return s;
+        }
+        // Margin: well above float rounding of window-local coordinates (~6e-8 relative).
+        const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
+        const double diag = glm::length(window.lsBounds.max - window.lsBounds.min);
+        Tracer tracer{window, scene, im.opt, 1e-6 * (std::max({ext.x, ext.y, ext.z}) + diag) + 1e-6, diag + 1.0};
+        for (const Light& L : window.lsLights)
+            if (L.type != LightType::Directional)
+                tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
+
+        std::atomic<uint64_t> rays{0}, kept{0};
+        tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
+            enableFlushToZero();
+            const Task& task = tasks[ti];
+            const ObjectVerdicts& ov = cv.objects[task.object];
+            const uint32_t object = uint32_t(ov.windowObject);
+            const std::vector<glm::dvec3> samples =
+                sampleGroup(window.objects[object], uint32_t(task.group), im.opt.areaSamples, im.opt.maxFeatureSamples);
+            std::vector<Hit> hitBuffer(size_t(im.opt.maxHitsPerRay));
+            uint64_t localRays = 0;
+            for (int l = 0; l < cv.lightCount; ++l) {
+                Decision& d = cv.at(task.object, task.group, l);
+                if (d.verdict != Verdict::Undecided) continue;
+                const Light& L = window.lsLights[size_t(l)];
+                for (const glm::dvec3& s : samples) {
+                    ++localRays;
+                    if (std::optional<Witness> wit = tracer.tryRay(L, object, uint32_t(task.group), s, hitBuffer.data())) {
+                        decide(d, Verdict::Kept, "raycast", "witness ray", std::move(wit));
+                        ++kept;
+                        break;
+                    }
+                }
+            }
+            rays += localRays;
+        });
+        rtcReleaseScene(scene);
+        scene = nullptr;
+        stats.raysCast += rays;
+        stats.provedKept += kept;
+        if (Status s = im.takeError(); !s) return s;
+    } catch (const std::exception& e) {
+        if (scene) rtcReleaseScene(scene);
+        return makeError(ErrorKind::Internal, "", 0, std::string("raycast stage: ") + e.what());
+    }
+    stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return Status::ok();
+}
+
+}  // namespace shadowcull::raycast

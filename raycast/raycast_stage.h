@@ -1,0 +1,42 @@
+// raycast/: witness rays with Embree 3. A witness proves a 1 (semantics.md): a ray from
+// the light whose first opaque hit is on the group (p is lit) and behind which, farther
+// than the bias (+ slope term), lies a receiver that receives light.
+//
+// The stage only ever proves 1s. Everything it cannot prove stays undecided (written as
+// 1), so an error here can cost render time, never a shadow.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <string>
+
+#include "core/stage.h"
+
+namespace shadowcull::raycast {
+
+struct RaycastOptions {
+    int areaSamples = 256;         // area-weighted samples per group and light
+    int maxFeatureSamples = 1024;  // vertex and edge-midpoint samples per group and light
+    int maxHitsPerRay = 48;        // nearest hits kept per ray (all-hit traversal)
+    int threads = 0;               // Embree build threads; 0 = all
+};
+
+class RaycastStage : public Stage {
+public:
+    explicit RaycastStage(RaycastOptions options = {});
+    ~RaycastStage() override;
+    RaycastStage(const RaycastStage&) = delete;
+    RaycastStage& operator=(const RaycastStage&) = delete;
+
+    const char* name() const override { return "raycast"; }
+    // Builds the window's Embree scene (meshes once per resource, placed as instances;
+    // terrain as triangles), then searches a witness for every undecided bit, in parallel
+    // over groups (TBB; call it inside the task arena that sets the thread count).
+    Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace shadowcull::raycast

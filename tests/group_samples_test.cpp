@@ -1,0 +1,87 @@
+// Sample points for witness rays: on the group, spread by area, deterministic.
+
+#include <gtest/gtest.h>
+
+#include <glm/geometric.hpp>
+
+#include "raycast/group_samples.h"
+
+using namespace shadowcull;
+
+namespace {
+
+// Two groups: group 0 a 10 x 10 square (two triangles), group 1 a 0.005 x 2 sliver.
+Mesh twoGroupMesh() {
+    Mesh m;
+    m.positions = {{0, 0, 0}, {10, 0, 0}, {10, 0, 10}, {0, 0, 10}, {20, 0, 0}, {20.005, 0, 0}, {20.005, 0, 2}, {20, 0, 2}};
+    m.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 6, 5}, {4, 7, 6}, {0, 0, 1}};
+    m.triangleGroup = {0, 0, 1, 1, 1};  // the last triangle repeats a vertex
+    m.groups = {PrimitiveGroup{"square"}, PrimitiveGroup{"rod"}};
+    return m;
+}
+
+bool onTriangleOfGroup(const WindowObject& o, uint32_t group, const glm::dvec3& p) {
+    for (size_t t = 0; t < o.mesh->triangles.size(); ++t) {
+        if (o.mesh->triangleGroup[t] != group) continue;
+        const auto& i = o.mesh->triangles[t];
+        glm::dvec3 a = o.lsTransform.apply(o.mesh->positions[i[0]]), b = o.lsTransform.apply(o.mesh->positions[i[1]]),
+                   c = o.lsTransform.apply(o.mesh->positions[i[2]]);
+        glm::dvec3 n = glm::cross(b - a, c - a);
+        double area2 = glm::length(n);
+        if (area2 == 0) continue;
+        double dist = std::abs(glm::dot(p - a, n / area2));
+        double u = glm::dot(glm::cross(c - b, p - b), n) / (area2 * area2);
+        double v = glm::dot(glm::cross(a - c, p - c), n) / (area2 * area2);
+        double w = 1 - u - v;
+        if (dist < 1e-9 && u > 0 && v > 0 && w > 0) return true;  // strictly inside
+    }
+    return false;
+}
+
+}  // namespace
+
+TEST(GroupSamples, LieStrictlyInsideTheGroupsTriangles) {
+    Mesh m = twoGroupMesh();
+    WindowObject o;
+    o.mesh = &m;
+    o.lsTransform.rows[3] = glm::dvec3(100, 5, -3);
+    for (uint32_t g : {0u, 1u}) {
+        auto s = raycast::sampleGroup(o, g, 64, 64);
+        ASSERT_FALSE(s.empty());
+        for (const glm::dvec3& p : s) EXPECT_TRUE(onTriangleOfGroup(o, g, p)) << "group " << g;
+    }
+}
+
+TEST(GroupSamples, AreaSamplesAreSpreadByArea) {
+    Mesh m = twoGroupMesh();
+    WindowObject o;
+    o.mesh = &m;
+    auto s = raycast::sampleGroup(o, 0, 256, 0);
+    ASSERT_EQ(s.size(), 256u);
+    // Each quadrant of the square gets a quarter of the samples, give or take a few.
+    int quadrant[4] = {0, 0, 0, 0};
+    for (const glm::dvec3& p : s) quadrant[(p.x >= 5 ? 1 : 0) + (p.z >= 5 ? 2 : 0)]++;
+    for (int q : quadrant) EXPECT_NEAR(q, 64, 12);
+    // Every prefix is spread too: the first 16 samples reach both triangles.
+    int lower = 0;
+    for (int k = 0; k < 16; ++k) lower += s[size_t(k)].x > s[size_t(k)].z;
+    EXPECT_GT(lower, 3);
+    EXPECT_LT(lower, 13);
+}
+
+TEST(GroupSamples, DegenerateTrianglesGetNoSamplesAndSamplingIsDeterministic) {
+    Mesh m = twoGroupMesh();
+    WindowObject o;
+    o.mesh = &m;
+    auto a = raycast::sampleGroup(o, 1, 32, 100);
+    auto b = raycast::sampleGroup(o, 1, 32, 100);
+    EXPECT_EQ(a, b);
+    EXPECT_EQ(a.size(), 32u + 12u);  // two rod triangles x 6 features; the degenerate one none
+    Mesh only;
+    only.positions = {{0, 0, 0}, {1, 0, 0}};
+    only.triangles = {{0, 1, 1}};
+    only.triangleGroup = {0};
+    only.groups = {PrimitiveGroup{}};
+    o.mesh = &only;
+    EXPECT_TRUE(raycast::sampleGroup(o, 0, 32, 32).empty());
+}
