@@ -215,6 +215,9 @@ private:
             isGlb_ = true;
             readGlb(bytes, text);
         } else {
+            std::string ext = fs::path(path_).extension().string();
+            std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+            if (ext == ".glb") fail("byte offset 0: not a GLB file (no 'glTF' magic; truncated?)");
             text.assign(bytes.begin(), bytes.end());
         }
         try {
@@ -447,7 +450,12 @@ private:
             if (lp.triangles.empty()) continue;
             const size_t base = mesh_.positions.size();
             if (base + lp.positions.size() > UINT32_MAX) fail("too many vertices for 32-bit indices");
-            for (const glm::dvec3& q : lp.positions) mesh_.positions.push_back(glm::dvec3(world * glm::dvec4(q, 1.0)));
+            for (const glm::dvec3& q : lp.positions) {
+                const glm::dvec3 w(world * glm::dvec4(q, 1.0));
+                if (!std::isfinite(w.x) || !std::isfinite(w.y) || !std::isfinite(w.z))
+                    fail(referrer + ": its transform makes positions overflow");  // e.g. scale 1e300
+                mesh_.positions.push_back(w);
+            }
             for (const auto& t : lp.triangles) {
                 const uint32_t a = uint32_t(base + t[0]), b = uint32_t(base + t[1]), c = uint32_t(base + t[2]);
                 mesh_.triangles.push_back(flip ? std::array<uint32_t, 3>{a, c, b} : std::array<uint32_t, 3>{a, b, c});

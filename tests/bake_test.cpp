@@ -1,0 +1,404 @@
+// End-to-end: known-answer scenes (every scene x the pipeline), metamorphic copies (moved
+// 100 km, lifted 5 km, turned a quarter), the CLI's outputs and exit codes on bad input,
+// byte preservation, and a bake killed mid-run.
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <functional>
+#include <map>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <tinyxml2.h>
+
+#include "cli/pipeline.h"
+#include "cli/report.h"
+#include "tests/support/space_builder.h"
+#include "tests/test_files.h"
+
+using namespace shadowcull;
+using namespace shadowcull::testing;
+namespace fs = std::filesystem;
+
+namespace {
+
+cli::BakeResult bakeDry(const fs::path& dir) {
+    cli::BakeOptions opt;
+    opt.spaceDir = dir.string();
+    opt.write = false;
+    Expected<cli::BakeResult> r = cli::runBake(opt);
+    EXPECT_TRUE(r) << (r ? "" : r.error().what());
+    return r ? std::move(*r) : cli::BakeResult{};
+}
+
+// The decision for (object at `loc`, group, light) in a bake result.
+const Decision* findDecision(const cli::BakeResult& r, const ObjectLocation& loc, int group, int light) {
+    for (const ChunkVerdicts& cv : r.chunks) {
+        if (chunkFileName(cv.coord) != loc.chunkFile) continue;
+        for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+            const ObjectVerdicts& ov = cv.objects[oi];
+            if (ov.elementIndex != loc.elementIndex) continue;
+            if (group >= ov.groupCount) return nullptr;
+            return &cv.at(oi, group, light);
+        }
+    }
+    return nullptr;
+}
+
+// Every (key, group, light) of a baked builder space -> "verdict/stage".
+std::map<std::string, std::string> verdictMap(const SpaceBuilder& b, const cli::BakeResult& r, const WorldTransform& wt) {
+    std::map<std::string, std::string> out;
+    for (const auto& [key, loc] : b.locateObjects(wt)) {
+        for (int g = 0;; ++g) {
+            const Decision* d0 = findDecision(r, loc, g, 0);
+            if (!d0) break;
+            for (int l = 0; l < int(r.settings.lights.size()); ++l) {
+                const Decision* d = findDecision(r, loc, g, l);
+                out[key + " g" + std::to_string(g) + " l" + std::to_string(l + 1)] =
+                    std::string(verdictName(d->verdict)) + "/" + d->stage;
+            }
+        }
+    }
+    return out;
+}
+
+struct NamedScene {
+    const char* name;
+    std::function<SpaceBuilder()> make;
+};
+
+const std::vector<NamedScene>& scenes() {
+    static const std::vector<NamedScene> s = {
+        {"cubeOnTerrain", cubeOnTerrain},
+        {"twoFloatingCubes", twoFloatingCubes},
+        {"rangeAndCone", rangeAndCone},
+        {"thinRod", thinRod},
+        {"twoLightsMasks", twoLightsMasks},
+        {"hiddenUnderOpaqueRoof", [] { return hiddenUnderRoof(false); }},
+        {"hiddenUnderAlphaRoof", [] { return hiddenUnderRoof(true); }},
+    };
+    return s;
+}
+
+// Runs the shadowcull binary; returns its exit code. Output goes to out/err files.
+int runCli(const std::string& args, const fs::path& outFile, const fs::path& errFile) {
+    std::string cmd = std::string(SHADOWCULL_BIN) + " " + args + " > '" + outFile.string() + "' 2> '" + errFile.string() + "'";
+    int rc = std::system(cmd.c_str());
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+std::map<std::string, std::string> chunkTexts(const fs::path& dir) {
+    std::map<std::string, std::string> m;
+    for (const auto& e : fs::directory_iterator(dir))
+        if (e.path().extension() == ".chunk") m[e.path().filename().string()] = readText(e.path());
+    return m;
+}
+
+}  // namespace
+
+// Every known answer of every scene: a true 1 is never written 0 and here is always proved
+// by a witness; a true 0 never gets a witness (that would be a witness bug) and is either
+// proved 0 or left undecided.
+TEST(KnownAnswers, EverySceneAgreesWithItsAnswers) {
+    for (const NamedScene& scene : scenes()) {
+        SCOPED_TRACE(scene.name);
+        SpaceBuilder b = scene.make();
+        fs::path dir = freshTestDir(std::string("-") + scene.name);
+        b.write((dir / "space").string());
+        cli::BakeResult r = bakeDry(dir / "space");
+        auto where = b.locateObjects();
+        ASSERT_FALSE(b.expectations().empty());
+        for (const KnownAnswer& a : b.expectations()) {
+            SCOPED_TRACE(a.key + " group " + std::to_string(a.group) + ": " + a.why);
+            ASSERT_TRUE(where.count(a.key));
+            for (int l = 0; l < int(r.settings.lights.size()); ++l) {
+                const Decision* d = findDecision(r, where.at(a.key), a.group, l);
+                ASSERT_NE(d, nullptr);
+                if (a.mask & (1u << l)) {
+                    EXPECT_EQ(d->verdict, Verdict::Kept) << "light " << l + 1 << ": a true 1 must be proved by a witness";
+                    EXPECT_TRUE(d->witness.has_value());
+                } else {
+                    EXPECT_NE(d->verdict, Verdict::Kept) << "light " << l + 1 << ": witness for a true 0: "
+                                                         << (d->witness ? d->witness->receiver : "");
+                }
+            }
+        }
+    }
+}
+
+TEST(KnownAnswers, FloatingCubesStayUndecidedAndAreWrittenOne) {
+    SpaceBuilder b = twoFloatingCubes();
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    cli::BakeResult r = bakeDry(dir / "space");
+    cli::BitCounts c = cli::countBits(r);
+    EXPECT_EQ(c.bits, 2u);
+    EXPECT_EQ(c.undecided, 2u);
+    EXPECT_EQ(c.culled, 0u);
+    for (const ChunkVerdicts& cv : r.chunks)
+        for (size_t oi = 0; oi < cv.objects.size(); ++oi) EXPECT_EQ(cv.groupMask(oi, 0), 1u);
+}
+
+TEST(KnownAnswers, RangeAndConeExcludeWhatLiesOutside) {
+    SpaceBuilder b = rangeAndCone();
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    cli::BakeResult r = bakeDry(dir / "space");
+    auto where = b.locateObjects();
+    // Every true 0 of a model in this scene is decided by the lights' reach alone.
+    for (const KnownAnswer& a : b.expectations()) {
+        if (a.key.rfind("terrain:", 0) == 0) continue;
+        for (int l = 0; l < 2; ++l) {
+            const Decision* d = findDecision(r, where.at(a.key), a.group, l);
+            ASSERT_NE(d, nullptr);
+            if (!(a.mask & (1u << l))) {
+                EXPECT_EQ(d->verdict, Verdict::Culled) << a.key << " light " << l + 1;
+                EXPECT_EQ(d->stage, "reach");
+            }
+        }
+    }
+}
+
+// The seed's mask values: group masks 2 and 3, the model's number 3, as written by the CLI.
+TEST(KnownAnswers, TwoLightsWriteTheSeedsMasks) {
+    SpaceBuilder b = twoLightsMasks();
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    fs::path out = dir / "out";
+    int rc = runCli("bake '" + (dir / "space").string() + "' --out '" + out.string() + "' --quiet", dir / "stdout", dir / "stderr");
+    ASSERT_EQ(rc, 0) << readText(dir / "stderr");
+    auto where = b.locateObjects();
+    const KnownAnswer& first = b.expectations().front();
+    tinyxml2::XMLDocument doc;
+    ASSERT_EQ(doc.LoadFile((out / where.at(first.key).chunkFile).string().c_str()), tinyxml2::XML_SUCCESS);
+    const tinyxml2::XMLElement* model = doc.RootElement()->FirstChildElement("model");
+    ASSERT_NE(model, nullptr);
+    const tinyxml2::XMLElement* shadow = model->FirstChildElement("shadow");
+    ASSERT_NE(shadow, nullptr);
+    EXPECT_EQ(std::atoi(shadow->GetText()), 3);
+    const tinyxml2::XMLElement* g = shadow->FirstChildElement("RenderSet")->FirstChildElement("Geometry")->FirstChildElement("PrimitiveGroup");
+    ASSERT_NE(g, nullptr);
+    EXPECT_EQ(std::atoi(g->GetText()), 2);
+    g = g->NextSiblingElement("PrimitiveGroup");
+    ASSERT_NE(g, nullptr);
+    EXPECT_EQ(std::atoi(g->GetText()), 3);
+    EXPECT_EQ(g->NextSiblingElement("PrimitiveGroup"), nullptr);
+}
+
+// Metamorphic: the same space moved by 100 km, lifted by 5 km, and turned a quarter about Y
+// gives the same verdict and deciding stage for every bit (so the same masks).
+TEST(Metamorphic, MovedLiftedAndTurnedSpacesBakeIdentically) {
+    const double S = 100.0;
+    const std::vector<std::pair<const char*, WorldTransform>> moves = {
+        {"moved 100 km", WorldTransform::moved({1000 * S, 0, -1000 * S})},
+        {"lifted 5 km", WorldTransform::moved({0, 5000, 0})},
+        {"turned a quarter", WorldTransform::turned(1)},
+        {"turned three quarters and moved", WorldTransform{3, glm::dvec3(-1000 * S, 5000, 1000 * S)}},
+    };
+    for (const NamedScene& scene : scenes()) {
+        SCOPED_TRACE(scene.name);
+        SpaceBuilder b = scene.make();
+        fs::path dir = freshTestDir(std::string("-") + scene.name);
+        b.write((dir / "base").string());
+        const auto base = verdictMap(b, bakeDry(dir / "base"), WorldTransform::identity());
+        ASSERT_FALSE(base.empty());
+        for (size_t k = 0; k < moves.size(); ++k) {
+            SCOPED_TRACE(moves[k].first);
+            fs::path moved = dir / ("moved" + std::to_string(k));
+            b.write(moved.string(), moves[k].second);
+            EXPECT_EQ(verdictMap(b, bakeDry(moved), moves[k].second), base);
+        }
+    }
+}
+
+TEST(Cli, ResultsJsonCarriesWitnessesAndProofs) {
+    SpaceBuilder b = rangeAndCone();
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    const auto before = chunkTexts(dir / "space");
+    int rc = runCli("bake '" + (dir / "space").string() + "' --dry-run --results '" + (dir / "r.json").string() + "'",
+                    dir / "stdout", dir / "stderr");
+    ASSERT_EQ(rc, 0) << readText(dir / "stderr");
+    EXPECT_EQ(chunkTexts(dir / "space"), before) << "--dry-run writes no chunk file";
+    nlohmann::json j = nlohmann::json::parse(readText(dir / "r.json"));
+    int witnesses = 0, proofs = 0;
+    for (const auto& c : j["chunks"])
+        for (const auto& o : c["objects"])
+            for (const auto& g : o["groups"])
+                for (const auto& bit : g["lights"]) {
+                    if (bit["verdict"] == "kept") {
+                        ++witnesses;
+                        ASSERT_TRUE(bit.contains("witness"));
+                        for (const char* k : {"origin", "direction", "p", "q"}) EXPECT_EQ(bit["witness"][k].size(), 3u);
+                        EXPECT_FALSE(bit["witness"]["receiver"].get<std::string>().empty());
+                        EXPECT_EQ(bit["bit"], 1);
+                    } else if (bit["verdict"] == "culled") {
+                        ++proofs;
+                        EXPECT_EQ(bit["bit"], 0);
+                        EXPECT_FALSE(bit["reason"].get<std::string>().empty());
+                    }
+                }
+    EXPECT_GE(witnesses, 3);
+    EXPECT_GE(proofs, 3);
+    EXPECT_EQ(j["summary"]["bits"].get<int>(), j["summary"]["kept"].get<int>() + j["summary"]["culled"].get<int>());
+    const std::string summary = readText(dir / "stdout");
+    EXPECT_NE(summary.find("proved 1 by witness ray"), std::string::npos) << summary;
+    EXPECT_NE(summary.find("undecided, kept as 1"), std::string::npos) << summary;
+}
+
+// A bake in place keeps every byte outside <shadow>, and baking again changes nothing.
+TEST(Cli, InPlaceBakeKeepsEverythingElseAndIsIdempotent) {
+    SpaceBuilder b = cubeOnTerrain();
+    b.addChunkXml(0, 0, "  <!-- keep me -->\n  <lod distance=\"40\"><x a='1'/></lod>\n");
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    const auto before = chunkTexts(dir / "space");
+    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --quiet", dir / "o", dir / "e"), 0) << readText(dir / "e");
+    const auto after = chunkTexts(dir / "space");
+    ASSERT_EQ(after.size(), before.size());
+    for (const auto& [name, text] : after) {
+        // Removing the <shadow> elements gives back the original.
+        std::string stripped = text;
+        for (size_t at; (at = stripped.find("<shadow>")) != std::string::npos;) {
+            size_t end = stripped.find("</shadow>", at) + 9;
+            size_t lineStart = stripped.rfind('\n', at);
+            stripped.erase(lineStart, end - lineStart);
+        }
+        EXPECT_EQ(stripped, before.at(name));
+        EXPECT_NE(text.find("<!-- keep me -->"), std::string::npos);
+    }
+    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --quiet", dir / "o", dir / "e"), 0);
+    EXPECT_EQ(chunkTexts(dir / "space"), after);
+    for (const auto& e : fs::directory_iterator(dir / "space"))
+        EXPECT_EQ(e.path().filename().string().find("shadowcull-tmp"), std::string::npos) << e.path();
+}
+
+struct BadInputCase {
+    const char* name;
+    std::function<void(const fs::path&)> spoil;  // spoils a written cubeOnTerrain space
+    int exitCode;
+    const char* message;  // must appear in stderr (file and line)
+};
+
+// Each bad input: the right exit code, a message naming the file (and line), and for a
+// stopped bake no chunk file changed; for a skipped object its element is left as it was.
+TEST(Cli, BadInputIsReportedWithFileLineAndExitCode) {
+    const std::vector<BadInputCase> cases = {
+        {"malformed chunk", [](const fs::path& d) { writeText(d / "00000000o.chunk", "<chunk>\n<model>\n</chunk>\n"); }, 3,
+         "00000000o.chunk:2: malformed XML"},
+        {"unknown light type",
+         [](const fs::path& d) { writeText(d / "space.xml", "<space>\n<light>\n<type> area </type>\n</light>\n</space>\n"); }, 3,
+         "space.xml:3: unknown light type 'area'"},
+        {"missing space.xml", [](const fs::path& d) { fs::remove(d / "space.xml"); }, 3, "space.xml: cannot open"},
+        {"missing mesh",
+         [](const fs::path& d) {
+             for (const auto& e : fs::directory_iterator(d / "models")) fs::remove(e.path());
+         },
+         1, "00000000o.chunk:"},
+        {"NaN vertex",
+         [](const fs::path& d) {
+             for (const auto& e : fs::directory_iterator(d / "models"))
+                 if (e.path().extension() == ".obj") writeText(e.path(), "v 0 0 0\nv nan 1 0\nv 0 0 1\nf 1 2 3\n");
+         },
+         1, ".obj:2:"},
+        {"bad chunk name", [](const fs::path& d) { writeText(d / "zzzz0000o.chunk", "<chunk/>"); }, 1,
+         "zzzz0000o.chunk: not a chunk name"},
+        {"8-bit heightmap",
+         [](const fs::path& d) {
+             for (const auto& e : fs::directory_iterator(d / "terrain"))
+                 if (e.path().extension() == ".png") {
+                     // A valid 2x2 8-bit grey PNG.
+                     static const unsigned char png8[] = {
+                         0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52,
+                         0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x08, 0x00, 0x00, 0x00, 0x00, 0x57, 0xdd, 0x52,
+                         0xf8, 0x00, 0x00, 0x00, 0x0e, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0x60, 0x60, 0x60, 0x60,
+                         0x00, 0x00, 0x00, 0x05, 0x00, 0x01, 0xa5, 0xf6, 0x45, 0x40, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45,
+                         0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+                     writeText(e.path(), std::string(reinterpret_cast<const char*>(png8), sizeof png8));
+                 }
+         },
+         1, "16-bit grey"},
+    };
+    for (const BadInputCase& c : cases) {
+        SCOPED_TRACE(c.name);
+        fs::path dir = freshTestDir(std::string("-") + std::to_string(&c - cases.data()));
+        cubeOnTerrain().write((dir / "space").string());
+        c.spoil(dir / "space");
+        const auto before = chunkTexts(dir / "space");
+        int rc = runCli("bake '" + (dir / "space").string() + "'", dir / "stdout", dir / "stderr");
+        const std::string err = readText(dir / "stderr");
+        EXPECT_EQ(rc, c.exitCode) << err;
+        EXPECT_NE(err.find(c.message), std::string::npos) << err;
+        const auto after = chunkTexts(dir / "space");
+        if (c.exitCode == 3) {
+            EXPECT_EQ(after, before) << "a stopped bake writes nothing";
+        } else {
+            // The skipped object's element is untouched; the baked ones have a <shadow>.
+            ASSERT_EQ(after.size(), before.size());
+            size_t shadows = 0;
+            for (const auto& [name, text] : after)
+                for (size_t at = 0; (at = text.find("<shadow>", at)) != std::string::npos; ++at) ++shadows;
+            EXPECT_GE(shadows, 1u);
+        }
+    }
+}
+
+// A bake killed at any moment leaves every chunk file either as it was or complete.
+TEST(KillTest, EveryChunkIsOriginalOrCompleteAfterSigkill) {
+    SpaceBuilder b = manyChunks(12);
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    const auto original = chunkTexts(dir / "space");
+    ASSERT_EQ(original.size(), 144u);
+
+    // The complete result, and how long a bake takes here.
+    const auto t0 = std::chrono::steady_clock::now();
+    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --out '" + (dir / "ref").string() + "' --quiet", dir / "o", dir / "e"), 0)
+        << readText(dir / "e");
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const auto complete = chunkTexts(dir / "ref");
+    ASSERT_EQ(complete.size(), original.size());
+    for (const auto& [name, text] : complete) ASSERT_NE(text, original.at(name)) << name << " gets a <shadow>";
+
+    int sawMixed = 0, sawOriginal = 0, sawComplete = 0;
+    for (int k = 0; k < 12; ++k) {
+        fs::path work = dir / ("run" + std::to_string(k));
+        fs::copy(dir / "space", work, fs::copy_options::recursive);
+        pid_t pid = fork();
+        ASSERT_GE(pid, 0);
+        if (pid == 0) {
+            execl(SHADOWCULL_BIN, SHADOWCULL_BIN, "bake", work.c_str(), "--quiet", static_cast<char*>(nullptr));
+            _exit(127);
+        }
+        // Spread the kills over the whole run, the commit at its end included.
+        std::this_thread::sleep_for(std::chrono::duration<double>(seconds * (0.1 + 0.09 * k)));
+        kill(pid, SIGKILL);
+        int status = 0;
+        waitpid(pid, &status, 0);
+        int originals = 0, completes = 0;
+        for (const auto& [name, text] : chunkTexts(work)) {
+            const bool isOriginal = text == original.at(name), isComplete = text == complete.at(name);
+            EXPECT_TRUE(isOriginal || isComplete) << name << " is half written after a kill at step " << k;
+            originals += isOriginal;
+            completes += isComplete;
+        }
+        EXPECT_EQ(originals + completes, 144);
+        if (originals && completes) ++sawMixed;
+        else if (originals) ++sawOriginal;
+        else ++sawComplete;
+        // The next bake clears the killed one's temporaries and completes every file.
+        ASSERT_EQ(runCli("bake '" + work.string() + "' --quiet", dir / "o", dir / "e"), 0) << readText(dir / "e");
+        EXPECT_EQ(chunkTexts(work), complete);
+        for (const auto& e : fs::directory_iterator(work))
+            EXPECT_EQ(e.path().filename().string().find("shadowcull-tmp"), std::string::npos);
+        fs::remove_all(work);
+    }
+    // Informational: where the kills landed.
+    std::printf("kills: %d before commit, %d during commit, %d after\n", sawOriginal, sawMixed, sawComplete);
+    EXPECT_GT(sawOriginal + sawMixed + sawComplete, 0);
+}

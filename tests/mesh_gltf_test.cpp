@@ -374,6 +374,7 @@ TEST(MeshGltf, TruncatedDataIsAnError) {
         std::string glb = oneTriangle().glb();
         expectError(loadString(glb.substr(0, glb.size() - 10), "m.glb"), "truncated");
         expectError(loadString(glb.substr(0, 10), "m.glb"), "truncated");
+        expectError(loadString(glb.substr(0, 3), "m.glb"), "not a GLB file");
         // Header length made consistent with the cut file: now the BIN chunk runs past the end.
         std::string cut = glb.substr(0, glb.size() - 8), length;
         appendU32(length, uint32_t(cut.size()));

@@ -419,7 +419,9 @@ bool hasOverrides(const MeshSpec& m) {
 }
 
 void validateMesh(const std::string& name, const MeshSpec& m) {
-    auto fail = [&](const std::string& why) { throw std::invalid_argument("space builder: mesh " + name + ": " + why); };
+    auto fail = [&](const std::string& why) {
+        throw std::invalid_argument("space builder: mesh " + name + ": " + why);
+    };
     if (m.groups.empty()) fail("has no groups");
     if (m.triangleGroup.size() != m.triangles.size()) fail("triangleGroup and triangles differ in length");
     std::vector<bool> used(m.groups.size(), false);
@@ -505,7 +507,8 @@ void SpaceBuilder::addChunk(int gx, int gz) {
 void SpaceBuilder::addChunkXml(int gx, int gz, const std::string& xml) {
     checkChunkRange({gx, gz});
     if (xml.find("<model") != std::string::npos || xml.find("<terrain") != std::string::npos)
-        throw std::invalid_argument("space builder: chunk XML must not hold <model> or <terrain> (it would shift indices)");
+        throw std::invalid_argument("space builder: chunk XML must not hold <model> or <terrain> "
+                                    "(it would shift element indices)");
     chunkXml_.emplace_back(ChunkId{gx, gz}, xml);
 }
 
@@ -624,15 +627,18 @@ std::string SpaceBuilder::spaceXml(const WorldTransform& wt) const {
         o << "  <neighbours left=\"" << n.left << "\" right=\"" << n.right << "\" top=\"" << n.top << "\" bottom=\""
           << n.bottom << "\"/>\n";
     o << "  <terrainTolerance> " << formatNumber(options_.terrainTolerance) << " </terrainTolerance>\n";
-    if (!options_.resourceRoot.empty()) o << "  <resourceRoot> " << escapeXml(options_.resourceRoot) << " </resourceRoot>\n";
+    if (!options_.resourceRoot.empty())
+        o << "  <resourceRoot> " << escapeXml(options_.resourceRoot) << " </resourceRoot>\n";
     const Affine move = wt.affine();
     for (const LightSpec& l : lights_) {
         static const char* const kinds[] = {"directional", "point", "spot"};
         o << "  <light>\n";
         o << "    <name> " << escapeXml(l.name) << " </name>\n";
         o << "    <type> " << kinds[int(l.kind)] << " </type>\n";
-        if (l.kind != LightKind::Directional) o << "    <position> " << vec3Text(move.apply(l.position)) << " </position>\n";
-        if (l.kind != LightKind::Point) o << "    <direction> " << vec3Text(move.applyLinear(l.direction)) << " </direction>\n";
+        if (l.kind != LightKind::Directional)
+            o << "    <position> " << vec3Text(move.apply(l.position)) << " </position>\n";
+        if (l.kind != LightKind::Point)
+            o << "    <direction> " << vec3Text(move.applyLinear(l.direction)) << " </direction>\n";
         if (l.kind != LightKind::Directional) o << "    <range> " << formatNumber(l.range) << " </range>\n";
         if (l.kind == LightKind::Spot) o << "    <coneAngle> " << formatNumber(l.coneAngle) << " </coneAngle>\n";
         o << "    <bias> " << formatNumber(l.bias) << " </bias>\n";
@@ -655,9 +661,10 @@ void SpaceBuilder::writeMesh(const std::string& resDir, const Mesh& m) const {
     // Groups are numbered by first `usemtl`, so faces go out group by group, in order.
     for (size_t g = 0; g < s.groups.size(); ++g) {
         if (materials) obj << "usemtl " << materialName(s, g) << "\n";
-        for (size_t t = 0; t < s.triangles.size(); ++t)
-            if (s.triangleGroup[t] == int(g))
-                obj << "f " << s.triangles[t][0] + 1 << " " << s.triangles[t][1] + 1 << " " << s.triangles[t][2] + 1 << "\n";
+        for (size_t t = 0; t < s.triangles.size(); ++t) {
+            const auto& tri = s.triangles[t];
+            if (s.triangleGroup[t] == int(g)) obj << "f " << tri[0] + 1 << " " << tri[1] + 1 << " " << tri[2] + 1 << "\n";
+        }
     }
     writeTextFile(dir / (m.name + ".obj"), obj.str());
 
@@ -676,7 +683,7 @@ void SpaceBuilder::writeMesh(const std::string& resDir, const Mesh& m) const {
                          {255, 0, 255, 0, 0, 255, 0, 255, 255, 0, 255, 0, 0, 255, 0, 255});
     }
 
-    if (m.resourcePath().size() > 6 && m.resourcePath().compare(m.resourcePath().size() - 6, 6, ".model") == 0) {
+    if (m.viaModelFile || hasOverrides(s)) {
         std::ostringstream model;
         model << "<model>\n  <visual> " << m.name << ".obj </visual>\n";
         for (size_t g = 0; g < s.groups.size(); ++g) {
@@ -684,7 +691,8 @@ void SpaceBuilder::writeMesh(const std::string& resDir, const Mesh& m) const {
             if (!gs.alphaTestOverride && !gs.doubleSidedOverride) continue;
             model << "  <primitiveGroup index=\"" << g << "\"";
             if (gs.alphaTestOverride) model << " alphaTest=\"" << (*gs.alphaTestOverride ? "true" : "false") << "\"";
-            if (gs.doubleSidedOverride) model << " doubleSided=\"" << (*gs.doubleSidedOverride ? "true" : "false") << "\"";
+            if (gs.doubleSidedOverride)
+                model << " doubleSided=\"" << (*gs.doubleSidedOverride ? "true" : "false") << "\"";
             model << "/>\n";
         }
         model << "</model>\n";
@@ -726,7 +734,8 @@ void SpaceBuilder::write(const std::string& dir, const WorldTransform& wt) const
             o << "      <row2> " << vec3Text(local.row2) << " </row2>\n";
             o << "      <row3> " << vec3Text(local.row3) << " </row3>\n";
             o << "    </transform>\n";
-            if (p->castsShadow) o << "    <castsShadow> " << (*p->castsShadow ? "true" : "false") << " </castsShadow>\n";
+            if (p->castsShadow)
+                o << "    <castsShadow> " << (*p->castsShadow ? "true" : "false") << " </castsShadow>\n";
             o << "  </model>\n";
         }
         if (const Terrain* t = chunk.terrain) {

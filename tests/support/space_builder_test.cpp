@@ -357,7 +357,9 @@ TEST(SpaceBuilder, BoxesAreClosedAndFaceOutwards) {
         double volume6 = 0;
         for (const auto& t : m.triangles) {
             for (int k = 0; k < 3; ++k) ++edges[{t[size_t(k)], t[size_t((k + 1) % 3)]}];
-            const glm::dvec3 &a = m.positions[size_t(t[0])], &b = m.positions[size_t(t[1])], &c = m.positions[size_t(t[2])];
+            const glm::dvec3& a = m.positions[size_t(t[0])];
+            const glm::dvec3& b = m.positions[size_t(t[1])];
+            const glm::dvec3& c = m.positions[size_t(t[2])];
             volume6 += a.x * (b.y * c.z - b.z * c.y) - a.y * (b.x * c.z - b.z * c.x) + a.z * (b.x * c.y - b.y * c.x);
         }
         EXPECT_EQ(m.triangles.size(), 12u);
@@ -436,4 +438,21 @@ TEST(SpaceBuilder, KnownAnswerScenesWriteAndLocateTheirExpectations) {
     const SpaceBuilder many = manyChunks(3);
     EXPECT_EQ(many.chunkFiles().size(), 9u);
     EXPECT_EQ(many.locateObjects().size(), 9u * 4u);  // 3 cubes + 1 terrain per chunk
+}
+
+TEST(SpaceBuilder, ResourceRootHoldsModelsAndTerrain) {
+    SpaceBuilder b;
+    b.options().resourceRoot = "res";
+    b.addMesh("cube", MeshSpec::box({0, 0, 0}, {1, 1, 1}));
+    b.addFile("models/extra.gltf", "{\"asset\": {\"version\": \"2.0\"}}");
+    b.addModel("cube", Affine::translation({1, 0, 1}));
+    b.addModel("models/extra.gltf", Affine::translation({2, 0, 2}));  // a path, used verbatim
+    b.addFlatTerrain(0, 0, -4.5);
+    const fs::path dir = scratchDir();
+    b.write(dir.string());
+    EXPECT_NE(slurp(dir / "space.xml").find("<resourceRoot> res </resourceRoot>"), std::string::npos);
+    EXPECT_TRUE(fs::exists(dir / "res/models/cube.obj"));
+    EXPECT_TRUE(fs::exists(dir / "res/models/extra.gltf"));
+    EXPECT_TRUE(fs::exists(dir / "res/terrain/00000000.terrain"));
+    EXPECT_NE(slurp(dir / "00000000o.chunk").find("<resource> models/extra.gltf </resource>"), std::string::npos);
 }
