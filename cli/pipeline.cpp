@@ -10,6 +10,7 @@
 #include <tbb/global_control.h>
 
 #include "core/chunk_writer.h"
+#include "core/format.h"
 #include "core/window.h"
 
 namespace fs = std::filesystem;
@@ -29,7 +30,7 @@ int exitCodeFor(ErrorKind kind) {
 std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdicts& cv) {
     std::vector<std::string> out;
     if (w.hasAlphaTested) out.push_back("alpha-tested groups let light pass");
-    if (w.hasTerrain) out.push_back("terrain rule (receivers deeper than " + std::to_string(w.terrainTolerance) + " m under terrain do not count)");
+    if (w.hasTerrain) out.push_back("terrain rule (receivers deeper than " + formatNumber(w.terrainTolerance) + " m under terrain do not count)");
     const std::vector<bool> reaching = lightsWithUndecided(cv);
     for (size_t l = 0; l < w.lsLights.size(); ++l) {
         const Light& L = w.lsLights[l];
@@ -46,12 +47,12 @@ std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdic
                 continue;
             }
         }
-        if (L.type != LightType::Directional) out.push_back(who + "range " + std::to_string(L.range) + " m");
-        if (L.type == LightType::Spot) out.push_back(who + "cone " + std::to_string(L.coneHalfAngleDeg) + " deg");
-        if (L.bias > 0) out.push_back(who + "bias " + std::to_string(L.bias) + " m");
-        if (L.slopeBias > 0) out.push_back(who + "slope bias " + std::to_string(L.slopeBias) + " m");
+        if (L.type != LightType::Directional) out.push_back(who + "range " + formatNumber(L.range) + " m");
+        if (L.type == LightType::Spot) out.push_back(who + "cone " + formatNumber(L.coneHalfAngleDeg) + " deg");
+        if (L.bias > 0) out.push_back(who + "bias " + formatNumber(L.bias) + " m");
+        if (L.slopeBias > 0) out.push_back(who + "slope bias " + formatNumber(L.slopeBias) + " m");
         if (L.filterRadius > 0)
-            out.push_back(who + "filter radius " + std::to_string(L.filterRadius) +
+            out.push_back(who + "filter radius " + formatNumber(L.filterRadius) +
                           " m (witnesses need no dilation; no stage of this bake proves 0 from receivers)");
     }
     return out;

@@ -157,7 +157,8 @@ Mesh parseObj(const fs::path& path, const std::string& text) {
     // creates its group at once, even if no face follows, so numbering depends only on the
     // order of `usemtl` lines. Faces before the first `usemtl` go to a group named "" that
     // is created at the first such face; it therefore gets number 0 whenever it exists,
-    // which also makes a file without any `usemtl` group 0, as the spec requires.
+    // which also makes a file without any `usemtl` group 0, as the spec requires. A bare
+    // `usemtl` (no name) selects that same "" group.
     auto groupFor = [&](const std::string& name) {
         auto [it, added] = groupIndex.emplace(name, uint32_t(mesh.groups.size()));
         if (added) mesh.groups.push_back(PrimitiveGroup{name});
@@ -180,7 +181,7 @@ Mesh parseObj(const fs::path& path, const std::string& text) {
         if (key == "v") {
             // x y z, optionally w or an r g b colour (a common extension); only xyz is used,
             // but every value must be a number so truncation is noticed.
-            if (tok.size() < 4 || tok.size() > 7) fail(line, "'v' needs 3 coordinates (x y z [w])");
+            if (tok.size() < 4 || tok.size() > 7) fail(line, "'v' needs x y z [w] (or x y z r g b)");
             glm::dvec3 p(parseNumber(tok[1], line), parseNumber(tok[2], line), parseNumber(tok[3], line));
             for (size_t k = 4; k < tok.size(); ++k) parseNumber(tok[k], line);
             if (mesh.positions.size() >= UINT32_MAX) fail(line, "too many vertices for 32-bit indices");

@@ -6,6 +6,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "core/format.h"
 #include "core/stage.h"
 
 namespace shadowcull {
@@ -99,7 +100,7 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
                 } else if (L.type != LightType::Directional &&
                            distanceToBox(L.position, gb) > L.range * (1 + kRelMargin) + kRelMargin) {
                     decide(d, Verdict::Culled, name(),
-                           "the group lies beyond the light's range (" + std::to_string(L.range) + " m)");
+                           "the group lies beyond the light's range (" + formatNumber(L.range) + " m)");
                 } else if (L.type == LightType::Spot && boxOutsideCone(L, gb)) {
                     decide(d, Verdict::Culled, name(), "the group lies outside the light's cone");
                 } else {

@@ -15,6 +15,7 @@
 #include <png.h>
 #include <tinyxml2.h>
 
+#include "core/format.h"
 #include "core/scene.h"
 
 namespace fs = std::filesystem;
@@ -304,7 +305,7 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
                 }
                 double det = o.transform.determinant();
                 if (!o.skipped && !(std::abs(det) > 1e-12))
-                    skip(c->GetLineNum(), "singular transform (determinant " + std::to_string(det) + ")");
+                    skip(c->GetLineNum(), "singular transform (determinant " + formatNumber(det) + ")");
             }
         }
         if (o.resource.empty()) skip(o.line, "<" + n + "> has no <resource>");

@@ -206,7 +206,7 @@ TEST(MeshObj, TruncatedContentIsAnErrorWithLine) {
         const char* expect;
     };
     for (const Case& c : std::vector<Case>{{"v 1 2 1.5e", "malformed number"},
-                                           {"v 1 2", "needs 3 coordinates"},
+                                           {"v 1 2", "needs x y z"},
                                            {"v 1 2 3x", "malformed number"},
                                            {"f 1 2", "at least 3"},
                                            {"f 1 2 3/", "malformed vertex reference"},

@@ -663,7 +663,8 @@ void SpaceBuilder::writeMesh(const std::string& resDir, const Mesh& m) const {
         if (materials) obj << "usemtl " << materialName(s, g) << "\n";
         for (size_t t = 0; t < s.triangles.size(); ++t) {
             const auto& tri = s.triangles[t];
-            if (s.triangleGroup[t] == int(g)) obj << "f " << tri[0] + 1 << " " << tri[1] + 1 << " " << tri[2] + 1 << "\n";
+            if (s.triangleGroup[t] != int(g)) continue;
+            obj << "f " << tri[0] + 1 << " " << tri[1] + 1 << " " << tri[2] + 1 << "\n";  // OBJ counts from 1
         }
     }
     writeTextFile(dir / (m.name + ".obj"), obj.str());
