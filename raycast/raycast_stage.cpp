@@ -49,6 +49,11 @@ struct HitCollector {
     int count = 0;
 };
 
+bool nearer(const Hit& a, const Hit& b) {
+    if (a.t != b.t) return a.t < b.t;
+    return a.object != b.object ? a.object < b.object : a.prim < b.prim;
+}
+
 void collectAllHits(const RTCFilterFunctionNArguments* args) {
     auto* hc = reinterpret_cast<HitCollector*>(args->context);
     for (unsigned i = 0; i < args->N; ++i) {
@@ -62,13 +67,15 @@ void collectAllHits(const RTCFilterFunctionNArguments* args) {
         bool dup = false;
         for (int k = 0; k < hc->count && !dup; ++k) dup = hc->hits[k].object == h.object && hc->hits[k].prim == h.prim;
         if (dup) continue;
-        // Insertion into the sorted array of the nearest `capacity` hits.
+        // Insertion into the sorted array of the nearest `capacity` hits. Equal distances
+        // are ordered by object and triangle, so the result does not depend on the order
+        // in which Embree's (thread-dependent) BVH visits them.
         if (hc->count == hc->capacity) {
-            if (h.t >= hc->hits[hc->count - 1].t) continue;
+            if (!nearer(h, hc->hits[hc->count - 1])) continue;
             --hc->count;
         }
         int k = hc->count++;
-        while (k > 0 && hc->hits[k - 1].t > h.t) {
+        while (k > 0 && nearer(h, hc->hits[k - 1])) {
             hc->hits[k] = hc->hits[k - 1];
             --k;
         }
