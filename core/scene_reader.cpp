@@ -420,6 +420,31 @@ Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkS
     return hf;
 }
 
+namespace {
+
+// Loads `path` with `load` the first time it is asked for and remembers the outcome, so a
+// resource shared by many objects is read (and, when bad, reported) once. Sets `out` and
+// returns true when the resource is usable.
+template <class T, class Load>
+bool loadOnce(std::map<std::string, Expected<std::shared_ptr<const T>>>& cache, const std::string& path,
+              std::shared_ptr<const T>& out, std::vector<Diagnostic>& diagnostics, Load load) {
+    auto it = cache.find(path);
+    if (it == cache.end()) {
+        Expected<T> r = load();
+        if (r) {
+            it = cache.emplace(path, std::make_shared<const T>(std::move(*r))).first;
+        } else {
+            diagnostics.push_back({r.error().file, r.error().line, r.error().message});
+            it = cache.emplace(path, r.error()).first;
+        }
+    }
+    if (!it->second) return false;
+    out = *it->second;
+    return true;
+}
+
+}  // namespace
+
 Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resourceRootOverride,
                           const std::vector<ChunkCoord>* only) {
     Space space;
@@ -461,33 +486,12 @@ Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resour
         for (ChunkObject& o : cf.objects) {
             if (o.skipped) continue;
             const std::string full = (fs::path(S.resourceRoot) / o.resource).lexically_normal().string();
-            std::optional<Error> err;
-            if (o.kind == ChunkObject::Kind::Model) {
-                auto it = meshes.find(full);
-                if (it == meshes.end()) {
-                    Expected<Mesh> m = loadModelResource(full);
-                    Expected<std::shared_ptr<const Mesh>> v =
-                        m ? Expected<std::shared_ptr<const Mesh>>(std::make_shared<const Mesh>(std::move(*m)))
-                          : Expected<std::shared_ptr<const Mesh>>(m.error());
-                    if (!m) space.diagnostics.push_back({m.error().file, m.error().line, m.error().message});
-                    it = meshes.emplace(full, std::move(v)).first;
-                }
-                if (it->second) o.mesh = *it->second;
-                else err = it->second.error();
-            } else {
-                auto it = terrains.find(full);
-                if (it == terrains.end()) {
-                    Expected<Heightfield> h = loadTerrainResource(full, S.chunkSize);
-                    Expected<std::shared_ptr<const Heightfield>> v =
-                        h ? Expected<std::shared_ptr<const Heightfield>>(std::make_shared<const Heightfield>(std::move(*h)))
-                          : Expected<std::shared_ptr<const Heightfield>>(h.error());
-                    if (!h) space.diagnostics.push_back({h.error().file, h.error().line, h.error().message});
-                    it = terrains.emplace(full, std::move(v)).first;
-                }
-                if (it->second) o.heightfield = *it->second;
-                else err = it->second.error();
-            }
-            if (err) {
+            const bool loaded = o.kind == ChunkObject::Kind::Model
+                                    ? loadOnce(meshes, full, o.mesh, space.diagnostics,
+                                               [&] { return loadModelResource(full); })
+                                    : loadOnce(terrains, full, o.heightfield, space.diagnostics,
+                                               [&] { return loadTerrainResource(full, S.chunkSize); });
+            if (!loaded) {
                 o.skipped = true;
                 o.skipReason = "resource " + o.resource + " could not be loaded";
                 space.diagnostics.push_back({cf.path, o.line, o.skipReason + "; object skipped (its <shadow> is left as it was)"});
