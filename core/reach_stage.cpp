@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <unordered_map>
 
 #include <glm/geometric.hpp>
 
@@ -18,13 +19,16 @@ ChunkVerdicts makeChunkVerdicts(const Space& space, const BakeWindow& window) {
     cv.lightCount = int(space.settings.lights.size());
     auto it = space.chunks.find(window.centre);
     if (it == space.chunks.end()) return cv;
+    std::unordered_map<const ChunkObject*, int> loaded;  // centre objects in the window
+    for (size_t k = 0; k < window.objects.size(); ++k)
+        if (window.objects[k].centre) loaded[window.objects[k].source] = int(k);
     for (const ChunkObject& o : it->second.objects) {
         ObjectVerdicts ov;
         ov.elementIndex = o.elementIndex;
         ov.terrain = o.kind == ChunkObject::Kind::Terrain;
         ov.uuid = o.uuid;
-        for (size_t k = 0; k < window.objects.size(); ++k)
-            if (window.objects[k].source == &o) ov.windowObject = int(k);
+        auto found = loaded.find(&o);
+        if (found != loaded.end()) ov.windowObject = found->second;
         if (ov.windowObject >= 0) {
             ov.groupCount = int(window.objects[size_t(ov.windowObject)].mesh->groups.size());
             ov.decisions.resize(size_t(ov.groupCount) * size_t(cv.lightCount));

@@ -7,8 +7,8 @@ namespace shadowcull {
 
 std::optional<double> BakeWindow::lsTerrainHeight(double x, double z) const {
     std::optional<double> lowest;
-    for (const WindowObject& o : objects) {
-        if (o.kind != ChunkObject::Kind::Terrain) continue;
+    for (size_t k : terrainObjects) {
+        const WindowObject& o = objects[k];
         const double lx = x - o.lsTerrainOrigin.x, lz = z - o.lsTerrainOrigin.z;
         if (lx < 0 || lz < 0 || lx > chunkSize || lz > chunkSize) continue;
         const double h = o.heightfield->heightAt(lx, lz) + o.lsTerrainOrigin.y;
@@ -92,6 +92,7 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
                     wo.lsTerrainOrigin = lsChunk;
                     wo.lsTransform.rows[3] = lsChunk;
                     w.hasTerrain = true;
+                    w.terrainObjects.push_back(w.objects.size());
                 } else {
                     wo.mesh = o.mesh.get();
                     wo.lsTransform = o.transform;

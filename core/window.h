@@ -52,6 +52,7 @@ struct BakeWindow {
     bool hasAlphaTested = false;      // any alpha-tested group loaded: the alpha rule applies
     bool hasTerrain = false;          // any terrain loaded: the terrain rule applies
     int skippedObjects = 0;           // objects of the window that could not be loaded
+    std::vector<size_t> terrainObjects;  // indices into `objects` of the terrains
 
     // Lowest terrain surface over window-local (x, z), or nothing where no terrain lies.
     // (The lowest, so that a receiver is only discounted when it is under every terrain.)
