@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -82,6 +83,10 @@ int main(int argc, char** argv) {
     bake->add_option("--results", resultsPath, "Write per-bit verdicts and evidence as JSON");
     bake->add_option("--samples", opt.raycast.areaSamples, "Area samples per group and light for witness rays")
         ->check(CLI::Range(1, 1 << 20));
+    std::vector<std::string> stageNames{"raycast", "geometry"};
+    bake->add_option("--stages", stageNames, "Stages after the input/reach checks (default: raycast geometry)")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"raycast", "geometry"}));
     bake->add_flag("--dry-run", [&](int64_t) { opt.write = false; }, "Compute and report, but write no chunk file");
     bake->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
 
@@ -94,6 +99,8 @@ int main(int argc, char** argv) {
         return kExitUsage;
     }
     opt.raycast.threads = opt.threads;
+    opt.useRaycast = std::find(stageNames.begin(), stageNames.end(), "raycast") != stageNames.end();
+    opt.useGeometry = std::find(stageNames.begin(), stageNames.end(), "geometry") != stageNames.end();
     if (*bake) return runBakeCommand(opt, resultsPath, quiet);
     return kExitUsage;
 }

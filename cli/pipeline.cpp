@@ -53,7 +53,7 @@ std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdic
         if (L.slopeBias > 0) out.push_back(who + "slope bias " + formatNumber(L.slopeBias) + " m");
         if (L.filterRadius > 0)
             out.push_back(who + "filter radius " + formatNumber(L.filterRadius) +
-                          " m (witnesses need no dilation; no stage of this bake proves 0 from receivers)");
+                          " m (shadow volumes dilated by it; witnesses need no dilation)");
     }
     return out;
 }
@@ -127,9 +127,14 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
     result.loadSeconds = since(t0);
 
     // 3. Bake every chunk; stage its new text in a temporary file beside the target.
+    // Cheap to expensive; each stage skips what an earlier one decided. Witness rays come
+    // before shadow volumes: most bits of a real world are 1s, found after a few rays.
     ReachStage reach;
     raycast::RaycastStage rays(opt.raycast);
-    std::vector<Stage*> stages{&reach, &rays};
+    geometry::GeometryStage volumes(opt.geometry);
+    std::vector<Stage*> stages{&reach};
+    if (opt.useRaycast) stages.push_back(&rays);
+    if (opt.useGeometry) stages.push_back(&volumes);
     result.stages.resize(stages.size());
     for (size_t s = 0; s < stages.size(); ++s) result.stages[s].name = stages[s]->name();
     std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>> terrainMeshes;

@@ -10,6 +10,7 @@
 #include "core/scene.h"
 #include "core/stage.h"
 #include "core/verdict.h"
+#include "geometry/geometry_stage.h"
 #include "raycast/raycast_stage.h"
 
 namespace shadowcull::cli {
@@ -33,6 +34,9 @@ struct BakeOptions {
     std::vector<std::string> chunkNames;  // empty: every chunk
     int threads = 0;          // 0: all cores
     raycast::RaycastOptions raycast;
+    bool useRaycast = true;   // witness rays (proves 1s)
+    bool useGeometry = true;  // exact shadow volumes (proves 0s)
+    geometry::GeometryOptions geometry;
     bool write = true;        // false: compute only (tests, reports)
 };
 

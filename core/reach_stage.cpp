@@ -8,6 +8,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/format.h"
+#include "core/light_reach.h"
 #include "core/stage.h"
 
 namespace shadowcull {
@@ -46,33 +47,6 @@ std::vector<bool> lightsWithUndecided(const ChunkVerdicts& verdicts) {
     return any;
 }
 
-namespace {
-
-// Relative margin on distance and angle comparisons: far above the rounding error of the
-// few double operations involved, far below any tolerance a user sets.
-constexpr double kRelMargin = 1e-9;
-
-double distanceToBox(const glm::dvec3& p, const Aabb& b) {
-    glm::dvec3 d = glm::max(glm::max(b.min - p, p - b.max), glm::dvec3(0.0));
-    return glm::length(d);
-}
-
-// True when no point of the box lies within the light's cone (spot lights): the box's
-// bounding sphere lies wholly outside the cone, with margin.
-bool boxOutsideCone(const Light& L, const Aabb& b) {
-    const glm::dvec3 c = 0.5 * (b.min + b.max);
-    const double r = 0.5 * glm::length(b.max - b.min);
-    const glm::dvec3 toC = c - L.position;
-    const double d = glm::length(toC);
-    if (!(d > r * (1 + kRelMargin) + kRelMargin)) return false;  // light inside or at the sphere
-    const double angle = std::acos(std::clamp(glm::dot(toC / d, L.direction), -1.0, 1.0));
-    const double halfSpan = std::asin(std::min(1.0, r / d));
-    const double cone = L.coneHalfAngleDeg * M_PI / 180.0;
-    return angle - halfSpan > cone + 1e-7;
-}
-
-}  // namespace
-
 Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();
     for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
@@ -101,11 +75,10 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
                     decide(d, Verdict::Culled, "input", "castsShadow is false");
                 } else if (gb.empty()) {
                     decide(d, Verdict::Culled, "input", "the group has no triangle with three distinct vertices");
-                } else if (L.type != LightType::Directional &&
-                           distanceToBox(L.position, gb) > L.range * (1 + kRelMargin) + kRelMargin) {
+                } else if (boxBeyondRange(L, gb)) {
                     decide(d, Verdict::Culled, name(),
                            "the group lies beyond the light's range (" + formatNumber(L.range) + " m)");
-                } else if (L.type == LightType::Spot && boxOutsideCone(L, gb)) {
+                } else if (boxOutsideCone(L, gb)) {
                     decide(d, Verdict::Culled, name(), "the group lies outside the light's cone");
                 } else {
                     continue;

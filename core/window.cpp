@@ -17,6 +17,41 @@ std::optional<double> BakeWindow::lsTerrainHeight(double x, double z) const {
     return lowest;
 }
 
+std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double x1, double z1) const {
+    if (terrainObjects.empty()) return std::nullopt;
+    // Chunk squares are aligned with the window origin (a chunk corner).
+    const int cx0 = int(std::floor(x0 / chunkSize)), cx1 = int(std::floor(x1 / chunkSize));
+    const int cz0 = int(std::floor(z0 / chunkSize)), cz1 = int(std::floor(z1 / chunkSize));
+    if (cx1 - cx0 > 64 || cz1 - cz0 > 64) return std::nullopt;
+    std::optional<double> lowest;
+    for (int cx = cx0; cx <= cx1; ++cx) {
+        for (int cz = cz0; cz <= cz1; ++cz) {
+            bool covered = false;
+            for (size_t k : terrainObjects) {
+                const WindowObject& o = objects[k];
+                if (o.lsTerrainOrigin.x != cx * chunkSize || o.lsTerrainOrigin.z != cz * chunkSize) continue;
+                covered = true;
+                const Heightfield& hf = *o.heightfield;
+                const double cell = hf.size / double(hf.n - 1);
+                auto index = [&](double v, double origin, bool up) {
+                    double f = (v - origin) / cell;
+                    int i = up ? int(std::ceil(f)) : int(std::floor(f));
+                    return std::clamp(i, 0, hf.n - 1);
+                };
+                const int i0 = index(x0, o.lsTerrainOrigin.x, false), i1 = index(x1, o.lsTerrainOrigin.x, true);
+                const int j0 = index(z0, o.lsTerrainOrigin.z, false), j1 = index(z1, o.lsTerrainOrigin.z, true);
+                for (int j = j0; j <= j1; ++j)
+                    for (int i = i0; i <= i1; ++i) {
+                        const double h = hf.at(i, j) + o.lsTerrainOrigin.y;
+                        if (!lowest || h < *lowest) lowest = h;
+                    }
+            }
+            if (!covered) return std::nullopt;
+        }
+    }
+    return lowest;
+}
+
 namespace {
 
 std::string objectLabel(const ChunkFile& cf, const ChunkObject& o) {

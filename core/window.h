@@ -57,6 +57,10 @@ struct BakeWindow {
     // Lowest terrain surface over window-local (x, z), or nothing where no terrain lies.
     // (The lowest, so that a receiver is only discounted when it is under every terrain.)
     std::optional<double> lsTerrainHeight(double x, double z) const;
+    // A lower bound of the terrain surface over the window-local rectangle [x0,x1] x [z0,z1]
+    // (the lowest sample of every cell it touches, of every terrain there), or nothing when
+    // part of the rectangle has no terrain. Conservative for "is this under the terrain".
+    std::optional<double> lsTerrainMinOver(double x0, double z0, double x1, double z1) const;
 };
 
 // Builds the window around `centre`. Terrain meshes are made once per heightfield and kept

@@ -3,7 +3,7 @@
 set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config
-  libglm-dev libtinyxml2-dev libpng-dev libtbb-dev libembree-dev
+  libglm-dev libtinyxml2-dev libpng-dev libtbb-dev libembree-dev libcgal-dev
   nlohmann-json3-dev libcli11-dev
   googletest libgtest-dev libbenchmark-dev
 )

@@ -1,0 +1,183 @@
+// The exact part of the geometry stage: see exact_frustum.h. All CGAL use of the project
+// is kept in this file (each CGAL translation unit costs ~11 s and 0.7 GB to compile).
+// Kernel: CGAL Exact_predicates_exact_constructions_kernel (lazy exact arithmetic over
+// interval filters), so every sign below is exact for the double inputs.
+
+#include "geometry/exact_frustum.h"
+
+#include <cmath>
+#include <vector>
+
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
+#include <glm/geometric.hpp>
+
+namespace shadowcull::geometry {
+
+namespace {
+
+using K = CGAL::Exact_predicates_exact_constructions_kernel;
+using FT = K::FT;
+using Point = K::Point_3;
+using Vector = K::Vector_3;
+
+Point toPoint(const glm::dvec3& p) { return Point(p.x, p.y, p.z); }
+Vector toVector(const glm::dvec3& v) { return Vector(v.x, v.y, v.z); }
+
+// An affine function f(x) = n . (x - o) + k; the half-space is f >= 0 (or > 0).
+struct HalfSpace {
+    Vector n;
+    Point o;
+    FT k;
+    FT operator()(const Point& x) const { return n * (x - o) + k; }
+};
+
+// Upper bound of |n| in double, for moving a half-space outward by a distance.
+double normUpper(const Vector& n) {
+    const double x = CGAL::to_double(n.x()), y = CGAL::to_double(n.y()), z = CGAL::to_double(n.z());
+    return std::sqrt(x * x + y * y + z * z) * (1.0 + 1e-9) + 1e-300;
+}
+
+// Keeps the part of the convex polygon `poly` where f >= 0 (Sutherland-Hodgman, exact).
+void clip(std::vector<Point>& poly, const HalfSpace& f) {
+    if (poly.empty()) return;
+    std::vector<Point> out;
+    out.reserve(poly.size() + 1);
+    const size_t n = poly.size();
+    std::vector<FT> v(n);
+    for (size_t i = 0; i < n; ++i) v[i] = f(poly[i]);
+    for (size_t i = 0; i < n; ++i) {
+        const size_t j = (i + 1) % n;
+        const CGAL::Sign si = CGAL::sign(v[i]), sj = CGAL::sign(v[j]);
+        if (si != CGAL::NEGATIVE) out.push_back(poly[i]);
+        if ((si == CGAL::POSITIVE && sj == CGAL::NEGATIVE) || (si == CGAL::NEGATIVE && sj == CGAL::POSITIVE)) {
+            const FT t = v[i] / (v[i] - v[j]);
+            out.push_back(poly[i] + (poly[j] - poly[i]) * t);
+        }
+        if (n == 1) break;
+    }
+    poly.swap(out);
+}
+
+}  // namespace
+
+struct ExactFrustum::Impl {
+    bool degenerate = false;
+    bool directional = true;
+    std::vector<HalfSpace> sides;  // closed
+    // Near half-space, completed per query with the bias:
+    //   directional: nearN . (x - a) - beta * nearK + dilate > 0, nearK = nearN . d > 0
+    //   point:       nearN . (x - L) - (1 + beta / dmax) * nearK + dilate > 0, nearK = nearN . (a - L) > 0
+    Vector nearN;
+    Point nearO;
+    FT nearK;
+    double dmax = 0.0;      // point lights: upper bound of |p - L| over the caster
+    double nearDilate = 0;  // dilation * |nearN|, rounded up
+};
+
+namespace {
+
+// A directional light in the caster's plane (edge-on caster, or a caster without area):
+// the shadow is the sheet { p + s d : p in t, s > beta } inside the plane spanned by the
+// caster and d. Bounded, conservatively, by that plane (two closed half-spaces), the two
+// lines along d through the caster's extreme vertices, and the depth of its nearest vertex.
+// Returns false when there is no such plane (all vertices on one line along d).
+bool buildSheet(ExactFrustum::Impl& m, const Point (&v)[3], const Vector& d, double dilation) {
+    Vector n = CGAL::cross_product(v[1] - v[0], v[2] - v[0]);
+    if (n == CGAL::NULL_VECTOR) {  // no area: the plane of its longest extent and d
+        for (int e = 0; e < 3 && n == CGAL::NULL_VECTOR; ++e) n = CGAL::cross_product(v[(e + 1) % 3] - v[e], d);
+        if (n == CGAL::NULL_VECTOR) return false;
+    }
+    const Vector w = CGAL::cross_product(n, d);  // in the plane, across the light
+    int lo = 0, hi = 0, nearest = 0;
+    for (int k = 1; k < 3; ++k) {
+        if (w * (v[k] - v[lo]) < 0) lo = k;
+        if (w * (v[k] - v[hi]) > 0) hi = k;
+        if (d * (v[k] - v[nearest]) < 0) nearest = k;
+    }
+    auto grown = [&](const Vector& a) { return FT(dilation > 0 ? dilation * normUpper(a) : 0.0); };
+    m.sides = {HalfSpace{n, v[0], grown(n)}, HalfSpace{-n, v[0], grown(n)}, HalfSpace{w, v[lo], grown(w)},
+               HalfSpace{-w, v[hi], grown(w)}};
+    m.nearN = d;
+    m.nearO = v[nearest];
+    m.nearK = d * d;
+    m.nearDilate = dilation > 0 ? dilation * normUpper(d) : 0.0;
+    return true;
+}
+
+}  // namespace
+
+ExactFrustum::ExactFrustum(const Triangle& t, const LightGeometry& light, double dilation) : impl_(std::make_unique<Impl>()) {
+    Impl& m = *impl_;
+    m.directional = light.directional;
+    const Point a = toPoint(t[0]), b = toPoint(t[1]), c = toPoint(t[2]);
+    const Point L = toPoint(light.position);
+    const Vector d = toVector(light.direction);
+    const Point v[3] = {a, b, c};
+    Vector n = CGAL::cross_product(b - a, c - a);
+    // Orient the caster's normal away from the light.
+    const FT facing = light.directional ? n * d : n * (a - L);
+    const CGAL::Sign s = CGAL::sign(facing);
+    if (s == CGAL::ZERO) {
+        m.degenerate = !(light.directional && buildSheet(m, v, d, dilation));
+        return;
+    }
+    if (s == CGAL::NEGATIVE) n = -n;
+    m.nearN = n;
+    m.nearO = light.directional ? a : L;
+    m.nearK = s == CGAL::NEGATIVE ? -facing : facing;
+    if (!light.directional) {
+        double dm = 0;
+        for (const glm::dvec3& p : t) dm = std::max(dm, glm::length(p - light.position));
+        m.dmax = dm * (1.0 + 1e-9) + 1e-300;
+    }
+    m.nearDilate = dilation > 0 ? dilation * normUpper(n) : 0.0;
+
+    for (int e = 0; e < 3; ++e) {
+        const Point& p = v[e];
+        const Point& q = v[(e + 1) % 3];
+        const Point& r = v[(e + 2) % 3];
+        Vector sn = light.directional ? CGAL::cross_product(q - p, d) : CGAL::cross_product(p - L, q - L);
+        const Point o = light.directional ? p : L;
+        const CGAL::Sign inside = CGAL::sign(sn * (r - o));
+        if (inside == CGAL::ZERO) {  // cannot happen when the caster is not edge-on; stay safe
+            m.degenerate = true;
+            return;
+        }
+        if (inside == CGAL::NEGATIVE) sn = -sn;
+        const double dil = dilation > 0 ? dilation * normUpper(sn) : 0.0;
+        m.sides.push_back(HalfSpace{sn, o, FT(dil)});
+    }
+}
+
+ExactFrustum::~ExactFrustum() = default;
+ExactFrustum::ExactFrustum(ExactFrustum&&) noexcept = default;
+ExactFrustum& ExactFrustum::operator=(ExactFrustum&&) noexcept = default;
+
+bool ExactFrustum::degenerate() const { return impl_->degenerate; }
+
+bool ExactFrustum::reaches(const Triangle& r, double beta) const {
+    const Impl& m = *impl_;
+    if (m.degenerate) return true;
+    std::vector<Point> poly = {toPoint(r[0]), toPoint(r[1]), toPoint(r[2])};
+    for (const HalfSpace& h : m.sides) {
+        clip(poly, h);
+        if (poly.empty()) return false;
+    }
+    // Near half-space, open: some vertex of the clipped (convex) polygon strictly beyond.
+    const FT factor = m.directional ? FT(beta) : FT(1) + FT(beta) / FT(m.dmax);
+    const HalfSpace nearSide{m.nearN, m.nearO, FT(m.nearDilate) - factor * m.nearK};
+    for (const Point& p : poly)
+        if (CGAL::sign(nearSide(p)) == CGAL::POSITIVE) return true;
+    return false;
+}
+
+int exactFacing(const Triangle& r, bool mirrored, const LightGeometry& light) {
+    const Point a = toPoint(r[0]), b = toPoint(r[1]), c = toPoint(r[2]);
+    const Vector n = CGAL::cross_product(b - a, c - a);
+    // Front faces the light when the light travels against the normal.
+    const FT along = light.directional ? n * toVector(light.direction) : n * (a - toPoint(light.position));
+    int s = -int(CGAL::sign(along));
+    return mirrored ? -s : s;
+}
+
+}  // namespace shadowcull::geometry

@@ -1,0 +1,63 @@
+// Exact shadow-frustum tests (the only CGAL translation unit of geometry/).
+//
+// A caster triangle t = (a, b, c) under a light casts its shadow into the frustum
+//   directional d:  { p + s d      : p in t, s > beta }
+//   point at L:     { L + l (p - L) : p in t, l > 1 + beta / Dmax }   (Dmax >= |p - L|)
+// The union of these frusta over a group's triangles is the group's shadow volume (the
+// silhouette extrusion of a closed mesh bounds the same set; per triangle it is also
+// correct for open and non-manifold meshes). The point-light form replaces the per-ray
+// bias by its smallest value over t, so it is a superset: conservative.
+//
+// Each frustum is the intersection of three closed side half-spaces and one open near
+// half-space. A receiver triangle r reaches the frustum when some point of r lies in all
+// of them; decided by clipping r exactly (CGAL Epeck: exact predicates and exact
+// constructions), so touching, coplanar and grazing receivers are decided exactly: a
+// receiver touching the caster, or lying in its plane, is not strictly behind it.
+// With a filter radius r > 0, every half-space is moved outward by r (a superset of the
+// frustum dilated by a ball of radius r).
+#pragma once
+
+#include <array>
+#include <memory>
+
+#include <glm/vec3.hpp>
+
+namespace shadowcull::geometry {
+
+using Triangle = std::array<glm::dvec3, 3>;  // window-local metres
+
+struct LightGeometry {
+    bool directional = true;
+    glm::dvec3 direction{0.0, -1.0, 0.0};  // directional: the way light travels
+    glm::dvec3 position{0.0};              // point and spot
+};
+
+class ExactFrustum {
+public:
+    struct Impl;
+
+    // Builds the frustum of `caster` (three distinct vertices). `dilation` is the filter
+    // radius in metres (0: none). A directional light in the caster's plane (edge-on, or
+    // no area) gives a sheet, bounded exactly in that plane. Degenerate only when no exact
+    // region is built (a point light in the caster's plane, or a caster that is a line
+    // along the light): the caller must then treat every nearby receiver as reached.
+    ExactFrustum(const Triangle& caster, const LightGeometry& light, double dilation);
+    ~ExactFrustum();
+    ExactFrustum(ExactFrustum&&) noexcept;
+    ExactFrustum& operator=(ExactFrustum&&) noexcept;
+
+    bool degenerate() const;
+    // True when some point of `receiver` lies in the frustum with bias `beta` (metres,
+    // >= 0; pass a lower bound of the true bias: smaller is conservative). Exact.
+    bool reaches(const Triangle& receiver, double beta) const;
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+// Exact facing: +1 when the light meets the receiver's front (counter-clockwise side, or
+// the other side when `mirrored`), -1 when it meets the back, 0 when the light is in the
+// receiver's plane (grazing: a one-sided receiver then receives nothing).
+int exactFacing(const Triangle& receiver, bool mirrored, const LightGeometry& light);
+
+}  // namespace shadowcull::geometry

@@ -1,0 +1,283 @@
+// GeometryStage: see geometry_stage.h. Broad phase in double (a grid over the window's
+// x/z, boxes with margins, the receiver rules); narrow phase exact (exact_frustum.cpp).
+// Every double test here only ever discards a receiver when it clearly cannot receive
+// (margins on the side of keeping it), and the exact test decides the rest; so a bit is
+// proved 0 only when no receiver can meet the group's shadow volume.
+
+#include "geometry/geometry_stage.h"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+#include <glm/vec2.hpp>
+#include <tbb/parallel_for.h>
+
+#include "core/format.h"
+#include "core/light_reach.h"
+#include "geometry/exact_frustum.h"
+
+namespace shadowcull::geometry {
+
+namespace {
+
+struct Receiver {
+    Triangle tri;  // window-local
+    Aabb box;
+    uint32_t object = 0, group = 0;
+    bool twoSided = false, mirrored = false, terrain = false;
+};
+
+// Receivers bucketed by the x/z cells their boxes touch.
+class ReceiverGrid {
+public:
+    ReceiverGrid(const Aabb& bounds, double cellSize, const std::vector<Receiver>& receivers) : receivers_(receivers) {
+        origin_ = glm::dvec2(bounds.min.x, bounds.min.z);
+        cell_ = cellSize;
+        nx_ = std::clamp(int(std::ceil((bounds.max.x - bounds.min.x) / cell_)) + 1, 1, 4096);
+        nz_ = std::clamp(int(std::ceil((bounds.max.z - bounds.min.z) / cell_)) + 1, 1, 4096);
+        cells_.resize(size_t(nx_) * size_t(nz_));
+        for (uint32_t k = 0; k < receivers.size(); ++k) {
+            auto [i0, j0, i1, j1] = range(receivers[k].box);
+            for (int j = j0; j <= j1; ++j)
+                for (int i = i0; i <= i1; ++i) cells_[size_t(j) * size_t(nx_) + size_t(i)].push_back(k);
+        }
+    }
+
+    // Calls f(index) once for every receiver whose box overlaps `box`.
+    template <class F>
+    void forEachOverlapping(const Aabb& box, std::vector<uint32_t>& stamp, uint32_t mark, F f) const {
+        auto [i0, j0, i1, j1] = range(box);
+        for (int j = j0; j <= j1; ++j)
+            for (int i = i0; i <= i1; ++i)
+                for (uint32_t k : cells_[size_t(j) * size_t(nx_) + size_t(i)]) {
+                    if (stamp[k] == mark) continue;
+                    stamp[k] = mark;
+                    const Aabb& b = receivers_[k].box;
+                    if (b.max.x < box.min.x || b.min.x > box.max.x || b.max.y < box.min.y || b.min.y > box.max.y ||
+                        b.max.z < box.min.z || b.min.z > box.max.z)
+                        continue;
+                    if (f(k)) return;
+                }
+    }
+
+private:
+    std::array<int, 4> range(const Aabb& b) const {
+        auto idx = [](double v, double o, double c, int n) { return std::clamp(int(std::floor((v - o) / c)), 0, n - 1); };
+        return {idx(b.min.x, origin_.x, cell_, nx_), idx(b.min.z, origin_.y, cell_, nz_), idx(b.max.x, origin_.x, cell_, nx_),
+                idx(b.max.z, origin_.y, cell_, nz_)};
+    }
+    const std::vector<Receiver>& receivers_;
+    glm::dvec2 origin_{0.0};
+    double cell_ = 1;
+    int nx_ = 1, nz_ = 1;
+    std::vector<std::vector<uint32_t>> cells_;
+};
+
+Aabb triangleBox(const Triangle& t) {
+    Aabb b;
+    for (const glm::dvec3& p : t) b.extend(p);
+    return b;
+}
+
+Aabb grown(Aabb b, double by) {
+    b.min -= glm::dvec3(by);
+    b.max += glm::dvec3(by);
+    return b;
+}
+
+// A box holding every point of the caster's frustum that lies inside `limits` (the
+// loaded window) and, for point and spot lights, within range. Conservative (margins).
+Aabb frustumBox(const Triangle& t, const Light& L, const Aabb& limits, double margin) {
+    Aabb box = triangleBox(t);
+    if (L.type == LightType::Directional) {
+        const glm::dvec3& d = L.direction;
+        double sMax = 0;
+        for (const glm::dvec3& v : t) {
+            // Ray parameter where v + s d leaves the window box.
+            double exit = std::numeric_limits<double>::infinity();
+            for (int a = 0; a < 3; ++a) {
+                if (d[a] > 0) exit = std::min(exit, (limits.max[a] - v[a]) / d[a]);
+                else if (d[a] < 0) exit = std::min(exit, (limits.min[a] - v[a]) / d[a]);
+            }
+            sMax = std::max(sMax, exit);
+        }
+        sMax = sMax * (1 + 1e-9) + margin;
+        for (const glm::dvec3& v : t) box.extend(v + sMax * d);
+    } else {
+        Aabb sphere;
+        sphere.min = L.position - glm::dvec3(L.range);
+        sphere.max = L.position + glm::dvec3(L.range);
+        const double dMin = distanceToBox(L.position, box) * (1 - 1e-9);
+        if (dMin > 1e-9) {
+            const double lMax = L.range / dMin * (1 + 1e-9) + 1e-9;
+            for (const glm::dvec3& v : t) box.extend(L.position + lMax * (v - L.position));
+            box.min = glm::max(box.min, sphere.min);
+            box.max = glm::min(box.max, sphere.max);
+        } else {
+            box = sphere;
+        }
+    }
+    return grown(box, margin + L.filterRadius);
+}
+
+// Per receiver and light: -1 when the receiver rules exclude it, else a lower bound of
+// the bias (metres) that applies to it.
+std::vector<double> receiverBiases(const BakeWindow& w, const std::vector<Receiver>& receivers, const Light& L,
+                                   const LightGeometry& lg, double margin) {
+    std::vector<double> beta(receivers.size(), -1.0);
+    tbb::parallel_for(size_t(0), receivers.size(), [&](size_t k) {
+        const Receiver& r = receivers[k];
+        // Facing: a one-sided receiver the light meets from behind or edge-on gets nothing.
+        int facing = 1;
+        if (!r.twoSided) {
+            facing = exactFacing(r.tri, r.mirrored, lg);
+            if (facing <= 0) return;
+        }
+        // Range and cone.
+        if (boxBeyondRange(L, r.box) || boxOutsideCone(L, r.box)) return;
+        // Terrain: wholly deeper than the tolerance under the terrain (terrain itself exempt).
+        if (w.hasTerrain && !r.terrain) {
+            std::optional<double> ground = w.lsTerrainMinOver(r.box.min.x, r.box.min.z, r.box.max.x, r.box.max.z);
+            if (ground && r.box.max.y < *ground - w.terrainTolerance - margin) return;
+        }
+        // Bias, and for directional lights the slope term (constant over a triangle).
+        double b = L.bias;
+        if (L.slopeBias > 0 && L.type == LightType::Directional) {
+            glm::dvec3 n = glm::cross(r.tri[1] - r.tri[0], r.tri[2] - r.tri[0]);
+            const double len = glm::length(n);
+            const double c = len > 0 ? std::abs(glm::dot(n / len, L.direction)) : 0.0;
+            if (c > 1e-6) b += L.slopeBias * std::sqrt(std::max(0.0, 1 - c * c)) / c;
+        }
+        beta[k] = std::max(0.0, b * (1 - 1e-9) - 1e-12);  // a lower bound: conservative
+    });
+    return beta;
+}
+
+std::string worldBox(const Aabb& b, const glm::dvec3& origin) {
+    auto v = [](const glm::dvec3& p) {
+        return "(" + formatNumber(p.x) + " " + formatNumber(p.y) + " " + formatNumber(p.z) + ")";
+    };
+    return v(b.min + origin) + " .. " + v(b.max + origin);
+}
+
+}  // namespace
+
+Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (window.skippedObjects > 0) return Status::ok();  // an unloaded object might receive
+
+    struct Task {
+        size_t object;
+        int group;
+    };
+    const bool cross = options_.crossCheckWitnesses;
+    auto wanted = [&](const Decision& d) { return d.verdict == Verdict::Undecided || (cross && d.verdict == Verdict::Kept); };
+    std::vector<Task> tasks;
+    std::vector<bool> lightNeeded(size_t(cv.lightCount), false);
+    for (size_t oi = 0; oi < cv.objects.size(); ++oi)
+        for (int g = 0; g < cv.objects[oi].groupCount; ++g) {
+            bool any = false;
+            for (int l = 0; l < cv.lightCount; ++l)
+                if (wanted(cv.at(oi, g, l))) any = lightNeeded[size_t(l)] = true;
+            if (any) tasks.push_back({oi, g});
+        }
+    if (tasks.empty()) return Status::ok();
+
+    try {
+        // Receivers: every triangle with three distinct vertices of everything loaded.
+        std::vector<Receiver> receivers;
+        for (uint32_t k = 0; k < window.objects.size(); ++k) {
+            const WindowObject& o = window.objects[k];
+            for (size_t t = 0; t < o.mesh->triangles.size(); ++t) {
+                const auto& i = o.mesh->triangles[t];
+                const glm::dvec3 &a = o.mesh->positions[i[0]], &b = o.mesh->positions[i[1]], &c = o.mesh->positions[i[2]];
+                if (hasRepeatedVertex(a, b, c)) continue;
+                Receiver r;
+                r.tri = {o.lsTransform.apply(a), o.lsTransform.apply(b), o.lsTransform.apply(c)};
+                r.box = triangleBox(r.tri);
+                r.object = k;
+                r.group = o.mesh->triangleGroup[t];
+                r.twoSided = o.mesh->groups[r.group].twoSided();
+                r.mirrored = o.flipsWinding;
+                r.terrain = o.kind == ChunkObject::Kind::Terrain;
+                receivers.push_back(r);
+            }
+        }
+        const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
+        const double margin = 1e-9 * (std::max({ext.x, ext.y, ext.z}) + 1.0) + 1e-9;
+        const Aabb limits = grown(window.lsBounds, 1.0);
+        ReceiverGrid grid(limits, std::max(window.chunkSize / 16.0, 1.0), receivers);
+
+        std::vector<std::vector<double>> beta(size_t(cv.lightCount));
+        std::vector<LightGeometry> lightGeom(size_t(cv.lightCount));
+        for (int l = 0; l < cv.lightCount; ++l) {
+            const Light& L = window.lsLights[size_t(l)];
+            lightGeom[size_t(l)] = LightGeometry{L.type == LightType::Directional, L.direction, L.position};
+            if (lightNeeded[size_t(l)]) beta[size_t(l)] = receiverBiases(window, receivers, L, lightGeom[size_t(l)], margin);
+        }
+
+        std::atomic<uint64_t> tests{0}, culled{0};
+        std::atomic<bool> contradiction{false};
+        std::string contradictionAt;
+        tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
+            const Task& task = tasks[ti];
+            const ObjectVerdicts& ov = cv.objects[task.object];
+            const WindowObject& wo = window.objects[size_t(ov.windowObject)];
+            std::vector<Triangle> casters;
+            for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
+                if (wo.mesh->triangleGroup[t] != uint32_t(task.group)) continue;
+                const auto& i = wo.mesh->triangles[t];
+                const glm::dvec3 &a = wo.mesh->positions[i[0]], &b = wo.mesh->positions[i[1]], &c = wo.mesh->positions[i[2]];
+                if (!hasRepeatedVertex(a, b, c)) casters.push_back({wo.lsTransform.apply(a), wo.lsTransform.apply(b), wo.lsTransform.apply(c)});
+            }
+            std::vector<uint32_t> stamp(receivers.size(), 0);
+            uint32_t mark = 0;
+            uint64_t localTests = 0;
+            for (int l = 0; l < cv.lightCount; ++l) {
+                Decision& d = cv.at(task.object, task.group, l);
+                if (!wanted(d)) continue;
+                const Light& L = window.lsLights[size_t(l)];
+                const std::vector<double>& lb = beta[size_t(l)];
+                bool candidate = false;
+                Aabb volume;
+                for (const Triangle& t : casters) {
+                    const ExactFrustum frustum(t, lightGeom[size_t(l)], L.filterRadius);
+                    const Aabb fb = frustumBox(t, L, limits, margin);
+                    volume.extend(fb);
+                    grid.forEachOverlapping(fb, stamp, ++mark, [&](uint32_t k) {
+                        if (lb[k] < 0) return false;
+                        ++localTests;
+                        if (frustum.reaches(receivers[k].tri, lb[k])) candidate = true;
+                        return candidate;
+                    });
+                    if (candidate) break;
+                }
+                if (candidate) continue;
+                if (d.verdict == Verdict::Kept) {  // cross-check mode: a proof against a witness
+                    if (!contradiction.exchange(true))
+                        contradictionAt = wo.label + " group " + std::to_string(task.group) + " light " + std::to_string(l + 1);
+                    continue;
+                }
+                decide(d, Verdict::Culled, "geometry",
+                       "no receiver in the shadow volume (" + std::to_string(casters.size()) +
+                           " caster triangles; volume within " + worldBox(volume, window.wsOrigin) + ")");
+                ++culled;
+            }
+            tests += localTests;
+        });
+        if (contradiction)
+            return makeError(ErrorKind::Internal, window.centrePath, 0,
+                             "geometry stage would prove 0 for a bit with a witness: " + contradictionAt);
+        stats.exactTests += tests;
+        stats.provedCulled += culled;
+    } catch (const std::exception& e) {
+        return makeError(ErrorKind::Internal, window.centrePath, 0, std::string("geometry stage: ") + e.what());
+    }
+    stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return Status::ok();
+}
+
+}  // namespace shadowcull::geometry

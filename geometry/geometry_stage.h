@@ -1,0 +1,32 @@
+// geometry/: proves "nothing can receive" exactly (semantics.md, the second way a shadow
+// is meaningless: it falls on nothing). For each undecided (group, light), the group's
+// shadow volume (union of its triangles' exact frusta, exact_frustum.h) is tested against
+// every loaded receiver triangle that survives the receiver rules; no receiver at all
+// proves 0. Otherwise the bit stays undecided.
+//
+// Shadow volumes: F. C. Crow, "Shadow Algorithms for Computer Graphics", SIGGRAPH 1977.
+#pragma once
+
+#include "core/stage.h"
+
+namespace shadowcull::geometry {
+
+struct GeometryOptions {
+    // Test mode: also examine bits the raycast stage kept, and fail with an internal error
+    // if a bit with a witness would be proved 0 (the two stages must never disagree).
+    bool crossCheckWitnesses = false;
+};
+
+class GeometryStage : public Stage {
+public:
+    explicit GeometryStage(GeometryOptions options = {}) : options_(options) {}
+    const char* name() const override { return "geometry"; }
+    // Decides nothing for a window with skipped objects: an object that could not be
+    // loaded might have been a receiver.
+    Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
+
+private:
+    GeometryOptions options_;
+};
+
+}  // namespace shadowcull::geometry
