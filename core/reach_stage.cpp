@@ -69,6 +69,7 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
             for (int l = 0; l < cv.lightCount; ++l) {
                 Decision& d = cv.at(oi, g, l);
                 if (d.verdict != Verdict::Undecided) continue;
+                ++stats.bitsExamined;
                 const Light& L = window.lsLights[size_t(l)];
                 const Aabb& gb = groupBounds[size_t(g)];
                 if (!castsShadow) {

@@ -15,12 +15,14 @@ namespace shadowcull {
 
 struct StageStats {
     double seconds = 0.0;
+    uint64_t bitsExamined = 0;  // undecided (group, light) bits the stage looked at
     uint64_t raysCast = 0;
     uint64_t exactTests = 0;  // exact (CGAL) receiver tests
     uint64_t provedKept = 0;
     uint64_t provedCulled = 0;
     void add(const StageStats& o) {
         seconds += o.seconds;
+        bitsExamined += o.bitsExamined;
         raysCast += o.raysCast;
         exactTests += o.exactTests;
         provedKept += o.provedKept;

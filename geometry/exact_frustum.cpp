@@ -6,9 +6,11 @@
 #include "geometry/exact_frustum.h"
 
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
 namespace shadowcull::geometry {
@@ -155,9 +157,12 @@ ExactFrustum& ExactFrustum::operator=(ExactFrustum&&) noexcept = default;
 
 bool ExactFrustum::degenerate() const { return impl_->degenerate; }
 
-bool ExactFrustum::reaches(const Triangle& r, double beta) const {
+bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3, 2>* reachedPart) const {
     const Impl& m = *impl_;
-    if (m.degenerate) return true;
+    if (m.degenerate) {
+        if (reachedPart) *reachedPart = {glm::min(glm::min(r[0], r[1]), r[2]), glm::max(glm::max(r[0], r[1]), r[2])};
+        return true;
+    }
     std::vector<Point> poly = {toPoint(r[0]), toPoint(r[1]), toPoint(r[2])};
     for (const HalfSpace& h : m.sides) {
         clip(poly, h);
@@ -166,9 +171,24 @@ bool ExactFrustum::reaches(const Triangle& r, double beta) const {
     // Near half-space, open: some vertex of the clipped (convex) polygon strictly beyond.
     const FT factor = m.directional ? FT(beta) : FT(1) + FT(beta) / FT(m.dmax);
     const HalfSpace nearSide{m.nearN, m.nearO, FT(m.nearDilate) - factor * m.nearK};
+    bool reached = false;
     for (const Point& p : poly)
-        if (CGAL::sign(nearSide(p)) == CGAL::POSITIVE) return true;
-    return false;
+        if (CGAL::sign(nearSide(p)) == CGAL::POSITIVE) {
+            reached = true;
+            break;
+        }
+    if (reached && reachedPart) {
+        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+        for (const Point& p : poly) {
+            const std::pair<double, double> c[3] = {CGAL::to_interval(p.x()), CGAL::to_interval(p.y()), CGAL::to_interval(p.z())};
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = std::min(lo[a], c[a].first);
+                hi[a] = std::max(hi[a], c[a].second);
+            }
+        }
+        *reachedPart = {lo, hi};
+    }
+    return reached;
 }
 
 int exactFacing(const Triangle& r, bool mirrored, const LightGeometry& light) {

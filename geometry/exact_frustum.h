@@ -48,8 +48,10 @@ public:
 
     bool degenerate() const;
     // True when some point of `receiver` lies in the frustum with bias `beta` (metres,
-    // >= 0; pass a lower bound of the true bias: smaller is conservative). Exact.
-    bool reaches(const Triangle& receiver, double beta) const;
+    // >= 0; pass a lower bound of the true bias: smaller is conservative). Exact. When
+    // true and `reachedPart` is given, it receives a box (rounded outward) holding every
+    // point of the receiver inside the frustum's side half-spaces (for the terrain rule).
+    bool reaches(const Triangle& receiver, double beta, std::array<glm::dvec3, 2>* reachedPart = nullptr) const;
 
 private:
     std::unique_ptr<Impl> impl_;

@@ -123,6 +123,13 @@ Aabb frustumBox(const Triangle& t, const Light& L, const Aabb& limits, double ma
     return grown(box, margin + L.filterRadius);
 }
 
+// True when every point of the box lies deeper than the tolerance under the terrain
+// (conservative: the box's top against the lowest terrain sample around it).
+bool underTerrain(const BakeWindow& w, const std::array<glm::dvec3, 2>& box, double margin) {
+    std::optional<double> ground = w.lsTerrainMinOver(box[0].x, box[0].z, box[1].x, box[1].z);
+    return ground && box[1].y < *ground - w.terrainTolerance - margin;
+}
+
 // Per receiver and light: -1 when the receiver rules exclude it, else a lower bound of
 // the bias (metres) that applies to it.
 std::vector<double> receiverBiases(const BakeWindow& w, const std::vector<Receiver>& receivers, const Light& L,
@@ -139,10 +146,7 @@ std::vector<double> receiverBiases(const BakeWindow& w, const std::vector<Receiv
         // Range and cone.
         if (boxBeyondRange(L, r.box) || boxOutsideCone(L, r.box)) return;
         // Terrain: wholly deeper than the tolerance under the terrain (terrain itself exempt).
-        if (w.hasTerrain && !r.terrain) {
-            std::optional<double> ground = w.lsTerrainMinOver(r.box.min.x, r.box.min.z, r.box.max.x, r.box.max.z);
-            if (ground && r.box.max.y < *ground - w.terrainTolerance - margin) return;
-        }
+        if (w.hasTerrain && !r.terrain && underTerrain(w, {r.box.min, r.box.max}, margin)) return;
         // Bias, and for directional lights the slope term (constant over a triangle).
         double b = L.bias;
         if (L.slopeBias > 0 && L.type == LightType::Directional) {
@@ -219,7 +223,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
             if (lightNeeded[size_t(l)]) beta[size_t(l)] = receiverBiases(window, receivers, L, lightGeom[size_t(l)], margin);
         }
 
-        std::atomic<uint64_t> tests{0}, culled{0};
+        std::atomic<uint64_t> tests{0}, culled{0}, examined{0};
         std::atomic<bool> contradiction{false};
         std::string contradictionAt;
         tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
@@ -239,6 +243,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
             for (int l = 0; l < cv.lightCount; ++l) {
                 Decision& d = cv.at(task.object, task.group, l);
                 if (!wanted(d)) continue;
+                ++examined;
                 const Light& L = window.lsLights[size_t(l)];
                 const std::vector<double>& lb = beta[size_t(l)];
                 bool candidate = false;
@@ -250,7 +255,12 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     grid.forEachOverlapping(fb, stamp, ++mark, [&](uint32_t k) {
                         if (lb[k] < 0) return false;
                         ++localTests;
-                        if (frustum.reaches(receivers[k].tri, lb[k])) candidate = true;
+                        const Receiver& r = receivers[k];
+                        std::array<glm::dvec3, 2> part;
+                        if (!frustum.reaches(r.tri, lb[k], &part)) return false;
+                        // The terrain rule on the part of the receiver the shadow reaches: a
+                        // rock half in the ground receives only with its part above ground.
+                        candidate = !(window.hasTerrain && !r.terrain && underTerrain(window, part, margin));
                         return candidate;
                     });
                     if (candidate) break;
@@ -272,6 +282,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
             return makeError(ErrorKind::Internal, window.centrePath, 0,
                              "geometry stage would prove 0 for a bit with a witness: " + contradictionAt);
         stats.exactTests += tests;
+        stats.bitsExamined += examined;
         stats.provedCulled += culled;
     } catch (const std::exception& e) {
         return makeError(ErrorKind::Internal, window.centrePath, 0, std::string("geometry stage: ") + e.what());

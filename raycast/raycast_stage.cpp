@@ -353,7 +353,7 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
             if (L.type != LightType::Directional)
                 tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
 
-        std::atomic<uint64_t> rays{0}, kept{0};
+        std::atomic<uint64_t> rays{0}, kept{0}, examined{0};
         tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
             enableFlushToZero();
             const Task& task = tasks[ti];
@@ -366,6 +366,7 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
             for (int l = 0; l < cv.lightCount; ++l) {
                 Decision& d = cv.at(task.object, task.group, l);
                 if (d.verdict != Verdict::Undecided) continue;
+                ++examined;
                 const Light& L = window.lsLights[size_t(l)];
                 for (const glm::dvec3& s : samples) {
                     ++localRays;
@@ -382,6 +383,7 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
         scene = nullptr;
         stats.raysCast += rays;
         stats.provedKept += kept;
+        stats.bitsExamined += examined;
         if (Status s = im.takeError(); !s) return s;
     } catch (const std::exception& e) {
         if (scene) rtcReleaseScene(scene);
