@@ -215,6 +215,35 @@ const std::vector<HardCase>& hardCases() {
              want[b.addModel("decal", toWall.then(Affine::translation({51.998, 4, 49})))] = Verdict::Culled;
              return b;
          }},
+        {"decal 2 mm before a wall, no bias (horizontal light)",
+         [](auto& want) {
+             SpaceBuilder b = flatWorld(LightSpec::directional("sun", {1, -0.2, 0.1}));
+             b.addMesh("wall", quadFacing(0, true, 10));
+             b.addMesh("decal", quadFacing(0, true, 1));
+             const Affine toWall{glm::dvec3(0, 1, 0), glm::dvec3(-1, 0, 0), glm::dvec3(0, 0, 1), glm::dvec3(0)};
+             b.addModel("wall", toWall.then(Affine::translation({52, 0, 45})));
+             want[b.addModel("decal", toWall.then(Affine::translation({51.998, 4, 49})))] = Verdict::Kept;
+             return b;
+         }},
+        {"point lamp: cube over a floor beyond the lamp's range",
+         [](auto& want) {
+             SpaceBuilder b = flatWorld(LightSpec::point("lamp", {50.5, 8, 50.5}, 6));
+             b.addMesh("cube", MeshSpec::box({0, 0, 0}, {1, 1, 1}));
+             b.addMesh("floor", quadFacing(0, true, 20));
+             // The floor is 8 m under the lamp, range 6: nothing the cube shades is lit.
+             want[b.addModel("cube", Affine::translation({50, 4, 50}))] = Verdict::Culled;
+             b.addModel("floor", Affine::translation({40, 0, 40}));
+             return b;
+         }},
+        {"spot light: cube over a floor within range",
+         [](auto& want) {
+             SpaceBuilder b = flatWorld(LightSpec::spot("torch", {50.5, 8, 50.5}, {0, -1, 0}, 20, 30));
+             b.addMesh("cube", MeshSpec::box({0, 0, 0}, {1, 1, 1}));
+             b.addMesh("floor", quadFacing(0, true, 20));
+             want[b.addModel("cube", Affine::translation({50, 4, 50}))] = Verdict::Kept;
+             b.addModel("floor", Affine::translation({40, 0, 40}));
+             return b;
+         }},
         {"one-sided floor facing away from the light",
          [](auto& want) {
              SpaceBuilder b = flatWorld(LightSpec::directional("sun", {0.3, -1, 0.2}));
