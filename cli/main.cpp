@@ -89,6 +89,8 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"raycast", "geometry"}));
     bake->add_flag("--dry-run", [&](int64_t) { opt.write = false; }, "Compute and report, but write no chunk file");
     bake->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
+    bake->add_flag("--resume", opt.resume,
+                   "Long bakes: commit each chunk when baked; skip chunks unchanged since the last --resume bake");
 
     try {
         app.parse(argc, argv);

@@ -5,10 +5,12 @@
 #include <fstream>
 #include <memory>
 #include <set>
+#include <unordered_map>
 #include <sstream>
 
 #include <tbb/global_control.h>
 
+#include "cli/resume.h"
 #include "core/chunk_writer.h"
 #include "core/format.h"
 #include "core/window.h"
@@ -151,9 +153,30 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
         if (ec) return makeError(ErrorKind::Io, opt.outDir, 0, "cannot create output directory: " + ec.message());
     }
     // Temporaries of a bake that was killed are never chunk files; clear them away.
-    if (opt.write) removeStaleTempFiles(opt.outDir.empty() ? opt.spaceDir : opt.outDir);
+    const std::string outDir = opt.outDir.empty() ? opt.spaceDir : opt.outDir;
+    if (opt.write) removeStaleTempFiles(outDir);
+    const bool resume = opt.resume && opt.write;
+    ResumeState state;
+    const std::string statePath = ResumeState::pathIn(outDir);
+    if (resume) state.load(statePath);
+    std::unordered_map<const void*, uint64_t> meshHashes;
+    auto lastSave = std::chrono::steady_clock::now();
     for (size_t k = 0; k < targets.size(); ++k) {
         const ChunkFile& cf = space.chunks.at(targets[k]);
+        const std::string target =
+            opt.outDir.empty() ? cf.path : (fs::path(opt.outDir) / fs::path(cf.path).filename()).string();
+        const std::string chunkName = chunkFileName(targets[k]);
+        uint64_t inputHash = 0;
+        if (resume) {
+            inputHash = windowInputHash(space, targets[k], opt, meshHashes);
+            bool ok = false;
+            const std::string current = readFile(target, ok);
+            if (ok && state.upToDate(chunkName, inputHash, current)) {
+                ++result.chunksResumed;
+                if (progress) progress(k + 1, targets.size());
+                continue;
+            }
+        }
         BakeWindow window = buildWindow(space, targets[k], terrainMeshes);
         ChunkVerdicts cv = makeChunkVerdicts(space, window);
         for (size_t s = 0; s < stages.size(); ++s) {
@@ -180,15 +203,25 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
                 discardStaged();
                 return rewritten.error();
             }
-            const std::string target =
-                opt.outDir.empty() ? cf.path : (fs::path(opt.outDir) / fs::path(cf.path).filename()).string();
             // Complete and synced before any target is replaced.
             Expected<std::string> temp = stageFile(target, *rewritten);
             if (!temp) {
                 discardStaged();
                 return temp.error();
             }
-            staged.push_back({*temp, target});
+            if (resume) {
+                // Long-bake mode: commit now, then record it (a kill between the two only
+                // costs baking this chunk again).
+                if (Status s = commitStagedFile(*temp, target); !s) return s.error();
+                ++result.chunksWritten;
+                state.record(chunkName, inputHash, *rewritten);
+                if (std::chrono::steady_clock::now() - lastSave > std::chrono::seconds(2)) {
+                    if (Status s = state.save(statePath); !s) return s.error();
+                    lastSave = std::chrono::steady_clock::now();
+                }
+            } else {
+                staged.push_back({*temp, target});
+            }
             result.writeSeconds += since(tw);
         }
         result.chunks.push_back(std::move(cv));
@@ -208,6 +241,8 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
         }
         ++result.chunksWritten;
     }
+    if (resume)
+        if (Status s = state.save(statePath); !s) return s.error();
     result.writeSeconds += since(tc);
     result.totalSeconds = since(t0);
     return result;

@@ -38,6 +38,9 @@ struct BakeOptions {
     bool useGeometry = true;  // exact shadow volumes (proves 0s)
     geometry::GeometryOptions geometry;
     bool write = true;        // false: compute only (tests, reports)
+    // Long bakes: commit each chunk as soon as it is baked, record what was written, and
+    // skip chunks whose inputs and file are unchanged since (cli/resume.h).
+    bool resume = false;
 };
 
 struct StageTiming {
@@ -52,6 +55,7 @@ struct BakeResult {
     std::vector<StageTiming> stages;    // in pipeline order
     double loadSeconds = 0, writeSeconds = 0, totalSeconds = 0;
     int chunksWritten = 0;
+    int chunksResumed = 0;  // skipped by --resume: unchanged since the last bake
 };
 
 // Progress callback: (chunks done, chunks total).

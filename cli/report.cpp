@@ -38,6 +38,7 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
     std::string s;
     s += "chunks " + std::to_string(r.chunks.size());
     if (wrote) s += " (" + std::to_string(r.chunksWritten) + " written)";
+    if (r.chunksResumed) s += ", " + std::to_string(r.chunksResumed) + " unchanged since the last bake (skipped)";
     s += ", groups " + std::to_string(c.groups) + ", lights " + std::to_string(r.settings.lights.size()) + "\n";
     s += "bits " + std::to_string(c.bits) + ": kept " + std::to_string(c.kept) + ", culled " + std::to_string(c.culled) +
          " (" + pct(c.culled, c.bits) + ")\n";

@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <functional>
 #include <map>
+#include <sstream>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -476,4 +477,89 @@ TEST(Cli, ResultsAreTheSameForAnyThreadCount) {
     const std::string one = readText(dir / "r1.json"), two = readText(dir / "r2.json");
     EXPECT_GT(one.size(), 1000u);
     EXPECT_EQ(one, two);
+}
+
+namespace {
+
+cli::BakeResult bakeResume(const fs::path& dir) {
+    cli::BakeOptions opt;
+    opt.spaceDir = dir.string();
+    opt.resume = true;
+    Expected<cli::BakeResult> r = cli::runBake(opt);
+    EXPECT_TRUE(r) << (r ? "" : r.error().what());
+    return r ? std::move(*r) : cli::BakeResult{};
+}
+
+}  // namespace
+
+// --resume skips exactly the chunks whose window inputs and file bytes are unchanged.
+TEST(Resume, SkipsUnchangedChunksAndRebakesWhatAnEditReaches) {
+    SpaceBuilder b = manyChunks(4);
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    cli::BakeResult first = bakeResume(dir / "space");
+    EXPECT_EQ(first.chunksWritten, 16);
+    EXPECT_EQ(first.chunksResumed, 0);
+    ASSERT_TRUE(fs::exists(dir / "space" / ".shadowcull-bake-state.json"));
+    const auto baked = chunkTexts(dir / "space");
+
+    cli::BakeResult again = bakeResume(dir / "space");
+    EXPECT_EQ(again.chunksResumed, 16);
+    EXPECT_EQ(again.chunksWritten, 0);
+    EXPECT_EQ(chunkTexts(dir / "space"), baked);
+
+    // Move one model of chunk (1,1) by 1 mm: every chunk whose window holds (1,1) (the 3x3
+    // block around it) is baked again; the other 7 are not.
+    const fs::path edited = dir / "space" / "00010001o.chunk";
+    std::string text = readText(edited);
+    const size_t row3 = text.find("<row3>");
+    ASSERT_NE(row3, std::string::npos);
+    const size_t end = text.find("</row3>", row3);
+    std::istringstream in(text.substr(row3 + 6, end - row3 - 6));
+    double x, y, z;
+    in >> x >> y >> z;
+    text.replace(row3 + 6, end - row3 - 6, " " + std::to_string(x + 0.001) + " " + std::to_string(y) + " " + std::to_string(z) + " ");
+    writeText(edited, text);
+    cli::BakeResult edit = bakeResume(dir / "space");
+    EXPECT_EQ(edit.chunksWritten, 9);
+    EXPECT_EQ(edit.chunksResumed, 7);
+
+    // A baked file changed by hand (a comment added) is baked again, alone.
+    const fs::path touched = dir / "space" / "00030003o.chunk";
+    writeText(touched, readText(touched) + "<!-- touched -->\n");
+    cli::BakeResult touch = bakeResume(dir / "space");
+    EXPECT_EQ(touch.chunksWritten, 1);
+    EXPECT_EQ(touch.chunksResumed, 15);
+}
+
+// A --resume bake killed mid-run completes on the next --resume run, with the same files
+// as an uninterrupted bake, and without baking again what was already committed.
+TEST(Resume, AKilledBakeCompletesOnRerun) {
+    SpaceBuilder b = manyChunks(10);
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --out '" + (dir / "ref").string() + "' --quiet", dir / "o", dir / "e"), 0);
+    const auto complete = chunkTexts(dir / "ref");
+    const auto t0 = std::chrono::steady_clock::now();
+    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --out '" + (dir / "timed").string() + "' --quiet --resume", dir / "o", dir / "e"), 0);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_EQ(chunkTexts(dir / "timed"), complete);
+
+    fs::copy(dir / "space", dir / "work", fs::copy_options::recursive);
+    pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        const std::string work = (dir / "work").string();
+        execl(SHADOWCULL_BIN, SHADOWCULL_BIN, "bake", work.c_str(), "--quiet", "--resume", static_cast<char*>(nullptr));
+        _exit(127);
+    }
+    std::this_thread::sleep_for(std::chrono::duration<double>(seconds * 0.5));
+    kill(pid, SIGKILL);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    for (const auto& [name, text] : chunkTexts(dir / "work"))
+        EXPECT_TRUE(text == complete.at(name) || text == readText(dir / "space" / name)) << name;
+    cli::BakeResult rerun = bakeResume(dir / "work");
+    EXPECT_EQ(rerun.chunksWritten + rerun.chunksResumed, 100);
+    EXPECT_EQ(chunkTexts(dir / "work"), complete);
 }

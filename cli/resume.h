@@ -1,0 +1,43 @@
+// bake --resume: which chunks a previous bake already wrote for the same inputs.
+//
+// A chunk is up to date when (1) the hash of everything its bake reads is the one recorded:
+// the settings and lights, the bake options that change verdicts, and every object of its
+// window (placement, flags, and the content of its mesh or heightfield); and (2) its file
+// still holds exactly the bytes that bake wrote. The record lives beside the chunk files in
+// `.shadowcull-bake-state.json`, rewritten atomically.
+#pragma once
+
+#include <map>
+#include <string>
+#include <unordered_map>
+
+#include "core/scene.h"
+#include "core/status.h"
+
+namespace shadowcull::cli {
+
+struct BakeOptions;
+
+// Hash of everything the bake of chunk `centre` reads. `meshHashes` caches per mesh and
+// heightfield across chunks.
+uint64_t windowInputHash(const Space& space, ChunkCoord centre, const BakeOptions& options,
+                         std::unordered_map<const void*, uint64_t>& meshHashes);
+
+class ResumeState {
+public:
+    static std::string pathIn(const std::string& dir);
+    // A missing or unreadable state means "nothing is up to date" (never an error: the
+    // worst case is baking again).
+    void load(const std::string& path);
+    bool upToDate(const std::string& chunk, uint64_t inputHash, const std::string& currentBytes) const;
+    void record(const std::string& chunk, uint64_t inputHash, const std::string& writtenBytes);
+    Status save(const std::string& path) const;
+
+private:
+    struct Entry {
+        uint64_t input = 0, output = 0;
+    };
+    std::map<std::string, Entry> entries_;
+};
+
+}  // namespace shadowcull::cli
