@@ -1,16 +1,17 @@
 // Witness rays (semantics.md, "The stages": raycast/). For each undecided (group, light),
-// rays from the light through sample points on the group; the all-hit traversal keeps the
-// nearest hits along each ray, and a ray is a witness when
-//   1. the first hit on the group comes before any opaque hit of another surface (p lit;
-//      alpha-tested groups are not opaque, the group's own triangles are p itself), with p
-//      within range and cone;
+// rays from the light through sample points on the group. A closest-hit ray, for which
+// alpha-tested groups other than the group itself are transparent, finds p; closest-hit
+// rays along the same line from beyond depth(p) + bias then walk the surfaces behind p,
+// nearest first, until one is a valid q. The line is a witness when
+//   1. the first opaque hit is on the group (p lit; alpha-tested groups are not opaque, the
+//      group's own triangles are p itself), with p within range and cone;
 //   2. a later hit q lies deeper than depth(p) + bias + slopeBias * tan(theta);
 //   3. q's surface faces the light or is two-sided, q is not under terrain by more than
 //      terrainTolerance, and q is within range and cone.
 // Every comparison carries a margin (kEps) on the side of "no witness", so rounding can
 // only turn a witness into an undecided bit, never create one.
 // Embree: I. Wald et al., "Embree: A Kernel Framework for Efficient CPU Ray Tracing",
-// ACM TOG 33(4), 2014. All-hit traversal with a context filter as in its "next hit" tutorial.
+// ACM TOG 33(4), 2014.
 
 #include "raycast/raycast_stage.h"
 
@@ -40,46 +41,23 @@ struct Hit {
     uint32_t prim;    // triangle index in the object's mesh
 };
 
-// The context handed to Embree; the filter keeps the nearest `capacity` hits and rejects
-// every hit, so traversal visits all of them.
-struct HitCollector {
+// The context for finding p: rejects hits on alpha-tested groups (light passes them),
+// except on the group whose witness is sought (its own alpha-tested triangles are p).
+struct AlphaSkip {
     RTCIntersectContext ctx;  // first member: Embree passes &ctx back to the filter
-    Hit* hits = nullptr;
-    int capacity = 0;
-    int count = 0;
+    const BakeWindow* window = nullptr;
+    uint32_t object = 0, group = 0;
 };
 
-bool nearer(const Hit& a, const Hit& b) {
-    if (a.t != b.t) return a.t < b.t;
-    return a.object != b.object ? a.object < b.object : a.prim < b.prim;
-}
-
-void collectAllHits(const RTCFilterFunctionNArguments* args) {
-    auto* hc = reinterpret_cast<HitCollector*>(args->context);
+void skipAlphaTested(const RTCFilterFunctionNArguments* args) {
+    const auto* a = reinterpret_cast<const AlphaSkip*>(args->context);
     for (unsigned i = 0; i < args->N; ++i) {
         if (!args->valid[i]) continue;
-        args->valid[i] = 0;  // reject: keep traversing
-        Hit h;
-        h.t = RTCRayN_tfar(args->ray, args->N, i);
         const unsigned inst = RTCHitN_instID(args->hit, args->N, i, 0);
-        h.object = inst != RTC_INVALID_GEOMETRY_ID ? inst : RTCHitN_geomID(args->hit, args->N, i);
-        h.prim = RTCHitN_primID(args->hit, args->N, i);
-        bool dup = false;
-        for (int k = 0; k < hc->count && !dup; ++k) dup = hc->hits[k].object == h.object && hc->hits[k].prim == h.prim;
-        if (dup) continue;
-        // Insertion into the sorted array of the nearest `capacity` hits. Equal distances
-        // are ordered by object and triangle, so the result does not depend on the order
-        // in which Embree's (thread-dependent) BVH visits them.
-        if (hc->count == hc->capacity) {
-            if (!nearer(h, hc->hits[hc->count - 1])) continue;
-            --hc->count;
-        }
-        int k = hc->count++;
-        while (k > 0 && nearer(h, hc->hits[k - 1])) {
-            hc->hits[k] = hc->hits[k - 1];
-            --k;
-        }
-        hc->hits[k] = h;
+        const uint32_t object = inst != RTC_INVALID_GEOMETRY_ID ? inst : RTCHitN_geomID(args->hit, args->N, i);
+        const WindowObject& o = a->window->objects[object];
+        const uint32_t group = o.mesh->triangleGroup[RTCHitN_primID(args->hit, args->N, i)];
+        if (o.mesh->groups[group].alphaTested && !(object == a->object && group == a->group)) args->valid[i] = 0;
     }
 }
 
@@ -223,9 +201,30 @@ struct Tracer {
         return true;
     }
 
-    // Traces one ray towards `target` on (object, group); returns a witness or nothing.
+    std::optional<Hit> closestHit(RTCIntersectContext* ctx, const glm::dvec3& origin, const glm::dvec3& dir, float tnear,
+                                  float tfar) const {
+        RTCRayHit rh{};
+        rh.ray.org_x = float(origin.x);
+        rh.ray.org_y = float(origin.y);
+        rh.ray.org_z = float(origin.z);
+        rh.ray.dir_x = float(dir.x);
+        rh.ray.dir_y = float(dir.y);
+        rh.ray.dir_z = float(dir.z);
+        rh.ray.tnear = tnear;
+        rh.ray.tfar = tfar;
+        rh.ray.mask = 0xffffffffu;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene, ctx, &rh);
+        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+        const unsigned inst = rh.hit.instID[0];
+        return Hit{rh.ray.tfar, inst != RTC_INVALID_GEOMETRY_ID ? inst : rh.hit.geomID, rh.hit.primID};
+    }
+
+    // Traces towards `target` on (object, group); returns a witness or nothing. Counts the
+    // Embree calls in `raysCast`.
     std::optional<Witness> tryRay(const Light& L, uint32_t object, uint32_t group, const glm::dvec3& target,
-                                  Hit* hitBuffer) const {
+                                  uint64_t* raysCast) const {
         glm::dvec3 origin, dir;
         double tfar;
         if (L.type == LightType::Directional) {
@@ -240,49 +239,34 @@ struct Tracer {
             dir = v / d;
             tfar = L.range;
         }
-        HitCollector hc;
-        rtcInitIntersectContext(&hc.ctx);
-        hc.ctx.filter = &collectAllHits;
-        hc.hits = hitBuffer;
-        hc.capacity = opt.maxHitsPerRay;
-        RTCRayHit rh{};
-        rh.ray.org_x = float(origin.x);
-        rh.ray.org_y = float(origin.y);
-        rh.ray.org_z = float(origin.z);
-        rh.ray.dir_x = float(dir.x);
-        rh.ray.dir_y = float(dir.y);
-        rh.ray.dir_z = float(dir.z);
-        rh.ray.tnear = 0.0f;
-        rh.ray.tfar = float(tfar);
-        rh.ray.mask = 0xffffffffu;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(scene, &hc.ctx, &rh);
-
-        // p: the first hit on the group.
-        int ip = -1;
-        for (int k = 0; k < hc.count; ++k) {
-            const Hit& h = hitBuffer[k];
-            if (h.object == object && w.objects[h.object].mesh->triangleGroup[h.prim] == group) {
-                ip = k;
-                break;
-            }
+        // p: the closest hit, alpha-tested groups other than this one let light pass.
+        AlphaSkip skip;
+        rtcInitIntersectContext(&skip.ctx);
+        if (w.hasAlphaTested) {
+            skip.ctx.filter = &skipAlphaTested;
+            skip.window = &w;
+            skip.object = object;
+            skip.group = group;
         }
-        if (ip < 0) return std::nullopt;
-        const double tp = hitBuffer[ip].t;
-        // p lit: no opaque surface of anything else before p or coincident with it.
-        for (int k = 0; k < hc.count && hitBuffer[k].t < tp + eps; ++k) {
-            const Hit& h = hitBuffer[k];
-            const bool sameGroup = h.object == object && w.objects[h.object].mesh->triangleGroup[h.prim] == group;
-            if (sameGroup) continue;
-            if (!w.hasAlphaTested || !groupOf(h).alphaTested) return std::nullopt;
-        }
+        std::optional<Hit> first = closestHit(&skip.ctx, origin, dir, 0.0f, float(tfar));
+        ++*raysCast;
+        if (!first || first->object != object || w.objects[object].mesh->triangleGroup[first->prim] != group)
+            return std::nullopt;
+        const double tp = first->t;
         const glm::dvec3 p = origin + dir * tp;
         if (!withinReach(L, p)) return std::nullopt;
 
-        // q: any later hit that receives light, deeper than the bias.
-        for (int k = ip + 1; k < hc.count; ++k) {
-            const Hit& h = hitBuffer[k];
+        // q: the receivers behind p along the same line, nearest first, from beyond the bias.
+        RTCIntersectContext plain;
+        rtcInitIntersectContext(&plain);
+        float tnear = float(tp + L.bias + eps);
+        for (int k = 0; k < opt.maxHitsPerRay; ++k) {
+            std::optional<Hit> next = closestHit(&plain, origin, dir, tnear, float(tfar));
+            ++*raysCast;
+            if (!next) return std::nullopt;
+            const Hit& h = *next;
+            // Skip past this surface (and any coincident with it) for the next step.
+            tnear = float(double(h.t) + 0.5 * eps);
             const double gap = double(h.t) - tp;
             if (!(gap > L.bias + eps)) continue;
             const WindowObject& ro = w.objects[h.object];
@@ -361,7 +345,6 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
             const uint32_t object = uint32_t(ov.windowObject);
             const std::vector<glm::dvec3> samples =
                 sampleGroup(window.objects[object], uint32_t(task.group), im.opt.areaSamples, im.opt.maxFeatureSamples);
-            std::vector<Hit> hitBuffer(size_t(im.opt.maxHitsPerRay));
             uint64_t localRays = 0;
             for (int l = 0; l < cv.lightCount; ++l) {
                 Decision& d = cv.at(task.object, task.group, l);
@@ -369,8 +352,7 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
                 ++examined;
                 const Light& L = window.lsLights[size_t(l)];
                 for (const glm::dvec3& s : samples) {
-                    ++localRays;
-                    if (std::optional<Witness> wit = tracer.tryRay(L, object, uint32_t(task.group), s, hitBuffer.data())) {
+                    if (std::optional<Witness> wit = tracer.tryRay(L, object, uint32_t(task.group), s, &localRays)) {
                         decide(d, Verdict::Kept, "raycast", "witness ray", std::move(wit));
                         ++kept;
                         break;

@@ -17,7 +17,7 @@ namespace shadowcull::raycast {
 struct RaycastOptions {
     int areaSamples = 256;         // area-weighted samples per group and light
     int maxFeatureSamples = 1024;  // vertex and edge-midpoint samples per group and light
-    int maxHitsPerRay = 48;        // nearest hits kept per ray (all-hit traversal)
+    int maxHitsPerRay = 48;        // surfaces behind p examined per witness line
     int threads = 0;               // Embree build threads; 0 = all
 };
 
