@@ -12,7 +12,10 @@
 #include <CLI/CLI.hpp>
 
 #include "cli/pipeline.h"
+#include "cli/diff.h"
+#include "cli/explain.h"
 #include "cli/report.h"
+#include "cli/sweep.h"
 
 using namespace shadowcull;
 using namespace shadowcull::cli;
@@ -92,6 +95,32 @@ int main(int argc, char** argv) {
     bake->add_flag("--resume", opt.resume,
                    "Long bakes: commit each chunk when baked; skip chunks unchanged since the last --resume bake");
 
+    SweepOptions sweepOpt;
+    CLI::App* sweep = app.add_subcommand("sweep", "What accuracy costs in time: a ladder of settings against a dense reference");
+    sweep->add_option("space", sweepOpt.spaceDir, "Space directory")->required()->check(CLI::ExistingDirectory);
+    sweep->add_option("--res", sweepOpt.resourceRoot, "Resource root");
+    sweep->add_option("--csv", sweepOpt.csvPath, "Write the table as CSV");
+    sweep->add_option("--svg", sweepOpt.svgPath, "Write a plot of false keeps against seconds (SVG)");
+    sweep->add_option("--threads", sweepOpt.threads, "Worker threads (default: all cores)")->check(CLI::NonNegativeNumber);
+    sweep->add_option("--reference-samples", sweepOpt.referenceSamples, "Area samples of the reference bake")
+        ->check(CLI::Range(1, 1 << 20));
+    sweep->add_flag("--quick", sweepOpt.quick, "A shorter ladder");
+
+    DiffOptions diffOpt;
+    CLI::App* diff = app.add_subcommand("diff", "Bits that changed between two bakes (results JSON files or baked spaces)");
+    diff->add_option("old", diffOpt.oldPath, "Old results JSON or baked space")->required()->check(CLI::ExistingPath);
+    diff->add_option("new", diffOpt.newPath, "New results JSON or baked space")->required()->check(CLI::ExistingPath);
+    diff->add_option("--html", diffOpt.htmlPath, "Write a self-contained HTML report");
+    diff->add_option("--json", diffOpt.jsonPath, "Write the changes as JSON");
+
+    ExplainOptions explainOpt;
+    CLI::App* explain = app.add_subcommand("explain", "Why each bit of one object is what it is");
+    explain->add_option("space", explainOpt.spaceDir, "Space directory")->required()->check(CLI::ExistingDirectory);
+    explain->add_option("chunk", explainOpt.chunk, "Chunk (XXXXZZZZo or XXXXZZZZo.chunk)")->required();
+    explain->add_option("object", explainOpt.object, "Object: uuid, or element index")->required();
+    explain->add_option("--res", explainOpt.resourceRoot, "Resource root");
+    explain->add_option("--light", explainOpt.light, "Only this light (1-based)")->check(CLI::PositiveNumber);
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -104,5 +133,15 @@ int main(int argc, char** argv) {
     opt.useRaycast = std::find(stageNames.begin(), stageNames.end(), "raycast") != stageNames.end();
     opt.useGeometry = std::find(stageNames.begin(), stageNames.end(), "geometry") != stageNames.end();
     if (*bake) return runBakeCommand(opt, resultsPath, quiet);
+    if (*diff) return runDiff(diffOpt, std::cout, std::cerr);
+    if (*explain) return runExplain(explainOpt, std::cout, std::cerr);
+    if (*sweep) {
+        Expected<std::vector<SweepRow>> rows = runSweep(sweepOpt, analyticLadder(sweepOpt.quick));
+        if (!rows) {
+            std::fprintf(stderr, "shadowcull: error: %s\n", rows.error().what().c_str());
+            return exitCodeFor(rows.error().kind);
+        }
+        return reportSweep(sweepOpt, *rows, std::cout, std::cerr);
+    }
     return kExitUsage;
 }

@@ -40,10 +40,13 @@ std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdic
         bool anyGroup = false;
         for (const ObjectVerdicts& ov : cv.objects) anyGroup |= ov.groupCount > 0;
         if (anyGroup && !reaching[l]) {
+            // Not traced only when the input and reach checks decided every bit of it.
             bool reachCulledAll = true;
             for (const ObjectVerdicts& ov : cv.objects)
-                for (int g = 0; g < ov.groupCount; ++g)
-                    reachCulledAll &= ov.decisions[size_t(g) * size_t(cv.lightCount) + l].stage != "raycast";
+                for (int g = 0; g < ov.groupCount; ++g) {
+                    const std::string& stage = ov.decisions[size_t(g) * size_t(cv.lightCount) + l].stage;
+                    reachCulledAll &= stage == "reach" || stage == "input";
+                }
             if (reachCulledAll) {
                 out.push_back(who + "cannot reach the chunk's casters (not traced)");
                 continue;

@@ -62,10 +62,30 @@ void clip(std::vector<Point>& poly, const HalfSpace& f) {
 
 }  // namespace
 
+// The same half-space in double, for a filter in front of the exact test: f(x) computed
+// in double is within `bound(x)` of the exact value, with a wide margin (the normal is a
+// cross product of differences of doubles: relative error a few ulps of |e1||e2|).
+struct FastHalfSpace {
+    glm::dvec3 n{0.0}, o{0.0};
+    double k = 0;      // offset (dilation), added
+    double scale = 0;  // |e1| |e2| + |n|: size of the normal's terms
+    // True when every vertex of r lies strictly outside (f < 0) beyond any rounding.
+    bool rejects(const Triangle& r) const {
+        for (const glm::dvec3& x : r) {
+            const glm::dvec3 d = x - o;
+            const double v = glm::dot(n, d) + k;
+            const double bound = 1e-12 * (scale * (std::abs(d.x) + std::abs(d.y) + std::abs(d.z)) + std::abs(k)) + 1e-300;
+            if (!(v < -bound)) return false;
+        }
+        return true;
+    }
+};
+
 struct ExactFrustum::Impl {
     bool degenerate = false;
     bool directional = true;
     std::vector<HalfSpace> sides;  // closed
+    std::vector<FastHalfSpace> fastSides;
     // Near half-space, completed per query with the bias:
     //   directional: nearN . (x - a) - beta * nearK + dilate > 0, nearK = nearN . d > 0
     //   point:       nearN . (x - L) - (1 + beta / dmax) * nearK + dilate > 0, nearK = nearN . (a - L) > 0
@@ -148,6 +168,14 @@ ExactFrustum::ExactFrustum(const Triangle& t, const LightGeometry& light, double
         if (inside == CGAL::NEGATIVE) sn = -sn;
         const double dil = dilation > 0 ? dilation * normUpper(sn) : 0.0;
         m.sides.push_back(HalfSpace{sn, o, FT(dil)});
+        // The double twin: the same formula, the orientation the exact sign chose.
+        const glm::dvec3 tp = t[size_t(e)], tq = t[size_t((e + 1) % 3)];
+        const glm::dvec3 e1 = light.directional ? tq - tp : tp - light.position;
+        const glm::dvec3 e2 = light.directional ? light.direction : tq - light.position;
+        glm::dvec3 fn = glm::cross(e1, e2);
+        if (inside == CGAL::NEGATIVE) fn = -fn;
+        m.fastSides.push_back(FastHalfSpace{fn, light.directional ? tp : light.position, dil,
+                                            glm::length(e1) * glm::length(e2) + glm::length(fn)});
     }
 }
 
@@ -163,6 +191,8 @@ bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3
         if (reachedPart) *reachedPart = {glm::min(glm::min(r[0], r[1]), r[2]), glm::max(glm::max(r[0], r[1]), r[2])};
         return true;
     }
+    for (const FastHalfSpace& f : m.fastSides)
+        if (f.rejects(r)) return false;  // clearly outside one side: no exact work needed
     std::vector<Point> poly = {toPoint(r[0]), toPoint(r[1]), toPoint(r[2])};
     for (const HalfSpace& h : m.sides) {
         clip(poly, h);
@@ -192,6 +222,18 @@ bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3
 }
 
 int exactFacing(const Triangle& r, bool mirrored, const LightGeometry& light) {
+    // Filter: the sign in double when it is far beyond rounding, else exactly.
+    {
+        const glm::dvec3 e1 = r[1] - r[0], e2 = r[2] - r[0];
+        const glm::dvec3 n = glm::cross(e1, e2);
+        const glm::dvec3 v = light.directional ? light.direction : r[0] - light.position;
+        const double along = glm::dot(n, v);
+        const double bound = 1e-12 * (glm::length(e1) * glm::length(e2) + glm::length(n)) * glm::length(v) + 1e-300;
+        if (std::abs(along) > bound) {
+            const int s = along < 0 ? 1 : -1;
+            return mirrored ? -s : s;
+        }
+    }
     const Point a = toPoint(r[0]), b = toPoint(r[1]), c = toPoint(r[2]);
     const Vector n = CGAL::cross_product(b - a, c - a);
     // Front faces the light when the light travels against the normal.

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
@@ -130,35 +131,53 @@ bool underTerrain(const BakeWindow& w, const std::array<glm::dvec3, 2>& box, dou
     return ground && box[1].y < *ground - w.terrainTolerance - margin;
 }
 
-// Per receiver and light: -1 when the receiver rules exclude it, else a lower bound of
-// the bias (metres) that applies to it.
-std::vector<double> receiverBiases(const BakeWindow& w, const std::vector<Receiver>& receivers, const Light& L,
-                                   const LightGeometry& lg, double margin) {
-    std::vector<double> beta(receivers.size(), -1.0);
-    tbb::parallel_for(size_t(0), receivers.size(), [&](size_t k) {
-        const Receiver& r = receivers[k];
+// Per receiver and light, computed on first use (most receivers of a window are never
+// tested): -1 when the receiver rules exclude it, else a lower bound of the bias
+// (metres) that applies to it. Safe to call from several threads: a value is computed
+// again at worst, always the same.
+class ReceiverRules {
+public:
+    ReceiverRules(const BakeWindow& w, const std::vector<Receiver>& receivers, const Light& L, const LightGeometry& lg,
+                  double margin)
+        : w_(w), receivers_(receivers), L_(L), lg_(lg), margin_(margin), beta_(receivers.size()), known_(receivers.size()) {
+        for (auto& k : known_) k.store(false, std::memory_order_relaxed);
+    }
+
+    double beta(uint32_t k) const {
+        if (known_[k].load(std::memory_order_acquire)) return beta_[k].load(std::memory_order_relaxed);
+        const double b = compute(receivers_[k]);
+        beta_[k].store(b, std::memory_order_relaxed);
+        known_[k].store(true, std::memory_order_release);
+        return b;
+    }
+
+private:
+    double compute(const Receiver& r) const {
         // Facing: a one-sided receiver the light meets from behind or edge-on gets nothing.
-        int facing = 1;
-        if (!r.twoSided) {
-            facing = exactFacing(r.tri, r.mirrored, lg);
-            if (facing <= 0) return;
-        }
+        if (!r.twoSided && exactFacing(r.tri, r.mirrored, lg_) <= 0) return -1;
         // Range and cone.
-        if (boxBeyondRange(L, r.box) || boxOutsideCone(L, r.box)) return;
+        if (boxBeyondRange(L_, r.box) || boxOutsideCone(L_, r.box)) return -1;
         // Terrain: wholly deeper than the tolerance under the terrain (terrain itself exempt).
-        if (w.hasTerrain && !r.terrain && underTerrain(w, {r.box.min, r.box.max}, margin)) return;
+        if (w_.hasTerrain && !r.terrain && underTerrain(w_, {r.box.min, r.box.max}, margin_)) return -1;
         // Bias, and for directional lights the slope term (constant over a triangle).
-        double b = L.bias;
-        if (L.slopeBias > 0 && L.type == LightType::Directional) {
+        double b = L_.bias;
+        if (L_.slopeBias > 0 && L_.type == LightType::Directional) {
             glm::dvec3 n = glm::cross(r.tri[1] - r.tri[0], r.tri[2] - r.tri[0]);
             const double len = glm::length(n);
-            const double c = len > 0 ? std::abs(glm::dot(n / len, L.direction)) : 0.0;
-            if (c > 1e-6) b += L.slopeBias * std::sqrt(std::max(0.0, 1 - c * c)) / c;
+            const double c = len > 0 ? std::abs(glm::dot(n / len, L_.direction)) : 0.0;
+            if (c > 1e-6) b += L_.slopeBias * std::sqrt(std::max(0.0, 1 - c * c)) / c;
         }
-        beta[k] = std::max(0.0, b * (1 - 1e-9) - 1e-12);  // a lower bound: conservative
-    });
-    return beta;
-}
+        return std::max(0.0, b * (1 - 1e-9) - 1e-12);  // a lower bound: conservative
+    }
+
+    const BakeWindow& w_;
+    const std::vector<Receiver>& receivers_;
+    const Light& L_;
+    LightGeometry lg_;
+    double margin_;
+    mutable std::vector<std::atomic<double>> beta_;
+    mutable std::vector<std::atomic<bool>> known_;
+};
 
 std::string worldBox(const Aabb& b, const glm::dvec3& origin) {
     auto v = [](const glm::dvec3& p) {
@@ -215,12 +234,13 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
         const Aabb limits = grown(window.lsBounds, 1.0);
         ReceiverGrid grid(limits, std::max(window.chunkSize / 16.0, 1.0), receivers);
 
-        std::vector<std::vector<double>> beta(size_t(cv.lightCount));
         std::vector<LightGeometry> lightGeom(size_t(cv.lightCount));
+        std::vector<std::unique_ptr<ReceiverRules>> rules(size_t(cv.lightCount));
         for (int l = 0; l < cv.lightCount; ++l) {
             const Light& L = window.lsLights[size_t(l)];
             lightGeom[size_t(l)] = LightGeometry{L.type == LightType::Directional, L.direction, L.position};
-            if (lightNeeded[size_t(l)]) beta[size_t(l)] = receiverBiases(window, receivers, L, lightGeom[size_t(l)], margin);
+            if (lightNeeded[size_t(l)])
+                rules[size_t(l)] = std::make_unique<ReceiverRules>(window, receivers, L, lightGeom[size_t(l)], margin);
         }
 
         std::atomic<uint64_t> tests{0}, culled{0}, examined{0};
@@ -245,7 +265,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 if (!wanted(d)) continue;
                 ++examined;
                 const Light& L = window.lsLights[size_t(l)];
-                const std::vector<double>& lb = beta[size_t(l)];
+                const ReceiverRules& lb = *rules[size_t(l)];
                 bool candidate = false;
                 Aabb volume;
                 for (const Triangle& t : casters) {
@@ -253,11 +273,12 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     const Aabb fb = frustumBox(t, L, limits, margin);
                     volume.extend(fb);
                     grid.forEachOverlapping(fb, stamp, ++mark, [&](uint32_t k) {
-                        if (lb[k] < 0) return false;
+                        const double beta = lb.beta(k);
+                        if (beta < 0) return false;
                         ++localTests;
                         const Receiver& r = receivers[k];
                         std::array<glm::dvec3, 2> part;
-                        if (!frustum.reaches(r.tri, lb[k], &part)) return false;
+                        if (!frustum.reaches(r.tri, beta, &part)) return false;
                         // The terrain rule on the part of the receiver the shadow reaches: a
                         // rock half in the ground receives only with its part above ground.
                         candidate = !(window.hasTerrain && !r.terrain && underTerrain(window, part, margin));

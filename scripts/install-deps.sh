@@ -4,6 +4,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config
   libglm-dev libtinyxml2-dev libpng-dev libtbb-dev libembree-dev libcgal-dev
+  libosmesa6-dev mesa-common-dev
   nlohmann-json3-dev libcli11-dev
   googletest libgtest-dev libbenchmark-dev
 )

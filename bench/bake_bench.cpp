@@ -1,0 +1,712 @@
+// bake_bench: bakes the benchmark worlds (bench/world_gen.h) and reports, per world and per
+// stage, time, rays, rays/s, exact (CGAL) tests, GPU passes, bits proved 0 / proved 1 /
+// left undecided and peak memory, then the issue-6 ratios (L vs M per chunk, pipeline rays/s
+// vs a bare Embree occlusion loop over the same scene, analytic vs GPU). See bench/README.md.
+//
+//   bake_bench [--sizes S,M,L] [--work DIR] [--threads N] [--max-chunks N]
+//              [--baseline-rays N] [--no-baseline] [--no-fork] [--gen-only] [--json FILE]
+//
+// Each world is generated once into the work directory, keyed by a hash of its spec and
+// the generator version, and reused by later runs. Generation, each bake and each Embree
+// baseline run in their own child process (fork), so that each peak RSS (wait4 ru_maxrss)
+// belongs to one job only; the parent never starts TBB or Embree.
+
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cerrno>
+#include <cinttypes>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "bench/world_gen.h"
+#include "cli/pipeline.h"
+#include "cli/report.h"
+#include "tests/support/space_builder.h"
+
+namespace shadowcull::bench {
+// bench/embree_baseline.cpp (no header of its own: only this program calls it).
+nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int centreZ, uint64_t rays, int threads);
+}  // namespace shadowcull::bench
+
+using namespace shadowcull;
+using namespace shadowcull::bench;
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+// Targets of issue 6.
+constexpr double kTargetRaysRatio = 0.5;       // pipeline rays/s >= half of bare Embree occlusion
+constexpr double kTargetLinearity = 0.10;      // L per chunk within 10% of M per chunk
+constexpr double kTargetMemoryGiB = 4.0;       // peak memory of L
+constexpr double kTargetGpuSpeedup = 10.0;     // analytic bake vs GPU method at 2048, world M
+constexpr uint64_t kDefaultBaselineCap = 4000000;  // rays per baseline loop unless --baseline-rays
+
+struct Options {
+    std::vector<std::string> sizes{"S", "M"};
+    fs::path work = fs::temp_directory_path() / "shadowcull-bench";
+    int threads = 0;
+    int maxChunks = 0;           // 0: every chunk; else bake at most N chunks (spread) and project
+    uint64_t baselineRays = 0;   // 0: as many as the pipeline cast, capped at kDefaultBaselineCap
+    bool baseline = true;
+    bool fork = true;
+    bool genOnly = false;
+    std::string jsonOut;         // all figures as JSON
+};
+
+[[noreturn]] void usage(const char* why) {
+    std::fprintf(stderr,
+                 "bake_bench: %s\n"
+                 "usage: bake_bench [--sizes S,M,L] [--work DIR] [--threads N] [--max-chunks N]\n"
+                 "                  [--baseline-rays N] [--no-baseline] [--no-fork] [--gen-only] [--json FILE]\n",
+                 why);
+    std::exit(2);
+}
+
+Options parseArgs(int argc, char** argv) {
+    Options o;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto value = [&]() -> std::string {
+            if (i + 1 >= argc) usage(("missing value after " + a).c_str());
+            return argv[++i];
+        };
+        auto number = [&](const std::string& v) -> long long {
+            char* end = nullptr;
+            const long long n = std::strtoll(v.c_str(), &end, 10);
+            if (v.empty() || *end || n < 0) usage(("not a count: " + v).c_str());
+            return n;
+        };
+        if (a == "--sizes") {
+            o.sizes.clear();
+            std::stringstream ss(value());
+            for (std::string s; std::getline(ss, s, ',');) {
+                WorldSpec spec;
+                if (!worldByName(s, spec)) usage(("unknown size " + s + " (S, M or L)").c_str());
+                o.sizes.push_back(spec.name);
+            }
+        } else if (a == "--work") {
+            o.work = value();
+        } else if (a == "--threads") {
+            o.threads = int(number(value()));
+        } else if (a == "--max-chunks") {
+            o.maxChunks = int(number(value()));
+        } else if (a == "--baseline-rays") {
+            o.baselineRays = uint64_t(number(value()));
+        } else if (a == "--no-baseline") {
+            o.baseline = false;
+        } else if (a == "--no-fork") {
+            o.fork = false;
+        } else if (a == "--gen-only") {
+            o.genOnly = true;
+        } else if (a == "--json") {
+            o.jsonOut = value();
+        } else if (a == "-h" || a == "--help") {
+            usage("help");
+        } else {
+            usage(("unknown option " + a).c_str());
+        }
+    }
+    return o;
+}
+
+double since(std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+// /proc/self/status field in KiB (VmRSS, VmHWM), 0 when unavailable.
+long procStatusKiB(const char* field) {
+    std::ifstream in("/proc/self/status");
+    for (std::string line; std::getline(in, line);)
+        if (line.rfind(field, 0) == 0) return std::atol(line.c_str() + std::strlen(field) + 1);
+    return 0;
+}
+
+// ---------------------------------------------------------------------------------------
+// Child processes
+
+struct Job {
+    bool ok = false;
+    long maxRssKiB = 0;   // peak resident set of the job (its own process with fork)
+    double wallSeconds = 0;
+    double cpuSeconds = 0;  // user + system time of the job's process (all its threads)
+};
+
+double cpuOf(const rusage& ru) {
+    return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+// Runs `body` (returns an exit code) in a child process, or in this one with --no-fork
+// (then the peak RSS is the whole program's so far).
+Job runJob(bool useFork, const std::function<int()>& body) {
+    Job job;
+    const auto t0 = std::chrono::steady_clock::now();
+    if (!useFork) {
+        rusage before{};
+        getrusage(RUSAGE_SELF, &before);
+        job.ok = body() == 0;
+        rusage ru{};
+        getrusage(RUSAGE_SELF, &ru);
+        job.maxRssKiB = ru.ru_maxrss;
+        job.cpuSeconds = cpuOf(ru) - cpuOf(before);
+        job.wallSeconds = since(t0);
+        return job;
+    }
+    std::fflush(stdout);
+    std::fflush(stderr);
+    const pid_t pid = fork();
+    if (pid < 0) {
+        std::perror("bake_bench: fork");
+        return job;
+    }
+    if (pid == 0) {
+        int code = 1;
+        try {
+            code = body();
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "bake_bench: %s\n", e.what());
+        }
+        std::fflush(stdout);
+        std::fflush(stderr);
+        _exit(code);  // skip tearing down the job's data: its time is not the job's
+    }
+    int status = 0;
+    rusage ru{};
+    while (wait4(pid, &status, 0, &ru) < 0 && errno == EINTR) {
+    }
+    job.ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    if (WIFSIGNALED(status)) std::fprintf(stderr, "bake_bench: job killed by signal %d\n", WTERMSIG(status));
+    job.maxRssKiB = ru.ru_maxrss;
+    job.cpuSeconds = cpuOf(ru);
+    job.wallSeconds = since(t0);
+    return job;
+}
+
+// "1.23 0.80 0.51" (1, 5, 15 minutes): other load on the machine skews every time here.
+std::string loadAverage() {
+    double l[3] = {0, 0, 0};
+    if (getloadavg(l, 3) != 3) return "?";
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.2f %.2f %.2f", l[0], l[1], l[2]);
+    return buf;
+}
+
+bool writeJson(const fs::path& p, const json& j) {
+    std::ofstream out(p);
+    out << j.dump(1) << "\n";
+    return bool(out);
+}
+
+bool readJson(const fs::path& p, json& j) {
+    std::ifstream in(p);
+    if (!in) return false;
+    try {
+        in >> j;
+    } catch (const std::exception&) {
+        return false;
+    }
+    return true;
+}
+
+// ---------------------------------------------------------------------------------------
+// Generation (cached)
+
+json statsJson(const WorldStats& s) {
+    return {{"chunks", s.chunks},
+            {"models", s.models},
+            {"byKind", s.byKind},
+            {"uniqueMeshes", s.uniqueMeshes},
+            {"uniqueMeshTriangles", s.uniqueMeshTriangles},
+            {"placedTriangles", s.placedTriangles},
+            {"terrainTriangles", s.terrainTriangles},
+            {"lights", s.lights},
+            {"directionalLights", s.directionalLights},
+            {"pointLights", s.pointLights},
+            {"spotLights", s.spotLights},
+            {"bytesOnDisk", s.bytesOnDisk},
+            {"files", s.files},
+            {"buildSeconds", s.buildSeconds},
+            {"writeSeconds", s.writeSeconds}};
+}
+
+// The world's directory, generated unless a complete copy is there; its stats in `stats`.
+bool ensureWorld(const WorldSpec& spec, const Options& o, fs::path& dir, json& stats) {
+    dir = o.work / ("world-" + spec.name + "-" + specHashHex(spec));
+    const fs::path marker = dir / "bench-world.json";
+    if (readJson(marker, stats)) {
+        stats["cached"] = true;
+        return true;
+    }
+    const fs::path tmp = dir.string() + ".tmp";
+    std::error_code ec;
+    fs::remove_all(tmp, ec);
+    fs::remove_all(dir, ec);
+    fs::create_directories(o.work, ec);
+    std::fprintf(stderr, "[%s] generating %dx%d chunks into %s ...\n", spec.name.c_str(), spec.chunksX, spec.chunksZ,
+                 dir.string().c_str());
+    const Job job = runJob(o.fork, [&] {
+        const WorldStats s = writeWorld(spec, tmp.string());
+        json j = statsJson(s);
+        j["spec"] = {{"name", spec.name},      {"chunksX", spec.chunksX},       {"chunksZ", spec.chunksZ},
+                     {"seed", spec.seed},      {"objectsPerChunk", spec.objectsPerChunk},
+                     {"chunkSize", spec.chunkSize}, {"terrainSamples", spec.terrainSamples},
+                     {"localLights", spec.localLights}, {"neighbours", spec.neighbours}, {"hash", specHashHex(spec)}};
+        return writeJson(tmp / "bench-world.json", j) ? 0 : 1;
+    });
+    if (!job.ok) return false;
+    fs::rename(tmp, dir, ec);
+    if (ec || !readJson(marker, stats)) return false;
+    stats["generationPeakRssKiB"] = job.maxRssKiB;
+    stats["generationWallSeconds"] = job.wallSeconds;
+    writeJson(marker, stats);
+    stats["cached"] = false;
+    return true;
+}
+
+// ---------------------------------------------------------------------------------------
+// The bake (in a child)
+
+// Chunks of the grid, row-major as the generator makes them.
+std::vector<std::pair<int, int>> gridChunks(const WorldSpec& spec) {
+    std::vector<std::pair<int, int>> out;
+    const int gx0 = -(spec.chunksX / 2), gz0 = -(spec.chunksZ / 2);
+    for (int i = 0; i < spec.chunksX; ++i)
+        for (int j = 0; j < spec.chunksZ; ++j) out.emplace_back(gx0 + i, gz0 + j);
+    return out;
+}
+
+int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, const fs::path& out) {
+    cli::BakeOptions opt;
+    opt.spaceDir = dir.string();
+    opt.write = false;
+    opt.threads = o.threads;
+    opt.raycast.threads = o.threads;
+    const std::vector<std::pair<int, int>> all = gridChunks(spec);
+    if (o.maxChunks > 0 && size_t(o.maxChunks) < all.size()) {
+        // Evenly spread over the grid (every k-th chunk in row-major order).
+        for (int n = 0; n < o.maxChunks; ++n) {
+            const auto& c = all[size_t(uint64_t(n) * all.size() / uint64_t(o.maxChunks))];
+            opt.chunkNames.push_back(testing::chunkName(c.first, c.second));
+        }
+    }
+    long rssFirstChunk = 0;
+    auto last = std::chrono::steady_clock::now();
+    const auto t0 = last;
+    const long rssStart = procStatusKiB("VmRSS:");
+    auto progress = [&](size_t done, size_t total) {
+        if (done == 1) rssFirstChunk = procStatusKiB("VmRSS:");
+        if (since(last) < 15.0 && done != total) return;
+        last = std::chrono::steady_clock::now();
+        const double el = since(t0);
+        std::fprintf(stderr, "[%s] %zu/%zu chunks, %.0f s, ETA %.0f s, RSS %.0f MiB\n", spec.name.c_str(), done, total, el,
+                     el / double(done) * double(total - done), procStatusKiB("VmRSS:") / 1024.0);
+    };
+    Expected<cli::BakeResult> r = cli::runBake(opt, progress);
+    if (!r) {
+        std::fprintf(stderr, "bake_bench: bake of %s failed: %s\n", spec.name.c_str(), r.error().what().c_str());
+        return 1;
+    }
+    const double wall = since(t0);
+    json j;
+    j["chunksBaked"] = r->chunks.size();
+    j["chunksTotal"] = all.size();
+    j["loadSeconds"] = r->loadSeconds;
+    j["totalSeconds"] = r->totalSeconds;
+    j["wallSeconds"] = wall;
+    j["threads"] = o.threads > 0 ? o.threads : int(std::thread::hardware_concurrency());
+    j["rssStartKiB"] = rssStart;
+    j["rssAfterFirstChunkKiB"] = rssFirstChunk;
+    j["vmHwmKiB"] = procStatusKiB("VmHWM:");
+    json stages = json::array();
+    for (const cli::StageTiming& st : r->stages) {
+        const StageStats& s = st.stats;
+        stages.push_back({{"name", st.name},
+                          {"seconds", s.seconds},
+                          {"bitsExamined", s.bitsExamined},
+                          {"raysCast", s.raysCast},
+                          {"exactTests", s.exactTests},
+                          {"provedKept", s.provedKept},
+                          {"provedCulled", s.provedCulled}});
+    }
+    j["stages"] = stages;
+    const cli::BitCounts c = cli::countBits(*r);
+    j["bits"] = {{"groups", c.groups},         {"bits", c.bits},           {"kept", c.kept},
+                 {"culled", c.culled},         {"provedKept", c.provedKept}, {"undecided", c.undecided},
+                 {"culledBy", c.culledBy}};
+    // Per light: witnesses, proofs by stage, undecided.
+    json lights = json::array();
+    const size_t nl = r->settings.lights.size();
+    std::vector<std::map<std::string, uint64_t>> perLight(nl);
+    for (const ChunkVerdicts& cv : r->chunks)
+        for (const ObjectVerdicts& ov : cv.objects)
+            for (size_t k = 0; k < ov.decisions.size(); ++k) {
+                const Decision& d = ov.decisions[k];
+                auto& m = perLight[k % nl];
+                if (d.verdict == Verdict::Undecided) ++m["undecided"];
+                else if (d.verdict == Verdict::Kept) ++m["kept"];
+                else ++m["culled:" + d.stage];
+            }
+    for (size_t l = 0; l < nl; ++l)
+        lights.push_back({{"name", r->settings.lights[l].name},
+                          {"type", lightTypeName(r->settings.lights[l].type)},
+                          {"counts", perLight[l]}});
+    j["lights"] = lights;
+    j["warnings"] = r->diagnostics.size();
+    json first = json::array();
+    for (size_t k = 0; k < std::min<size_t>(5, r->diagnostics.size()); ++k) first.push_back(r->diagnostics[k].what());
+    j["firstWarnings"] = first;
+    return writeJson(out, j) ? 0 : 1;
+}
+
+// ---------------------------------------------------------------------------------------
+// Formatting
+
+std::string fmt(const char* f, double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, f, v);
+    return buf;
+}
+
+// 1234567 -> "1,234,567"
+std::string count(uint64_t v) {
+    std::string s = std::to_string(v), out;
+    for (size_t k = 0; k < s.size(); ++k) {
+        if (k > 0 && (s.size() - k) % 3 == 0) out += ',';
+        out += s[k];
+    }
+    return out;
+}
+
+std::string seconds(double s) {
+    if (s < 0.01) return fmt("%.4f", s);
+    if (s < 10) return fmt("%.3f", s);
+    return fmt("%.1f", s);
+}
+
+std::string rate(double perSecond) {
+    if (perSecond >= 1e6) return fmt("%.2f M", perSecond / 1e6);
+    if (perSecond >= 1e3) return fmt("%.1f k", perSecond / 1e3);
+    return fmt("%.0f", perSecond);
+}
+
+std::string mib(double kib) {
+    if (kib >= 1024.0 * 1024.0) return fmt("%.2f GiB", kib / (1024.0 * 1024.0));
+    return fmt("%.0f MiB", kib / 1024.0);
+}
+
+std::string cpuModel() {
+    std::ifstream in("/proc/cpuinfo");
+    for (std::string line; std::getline(in, line);)
+        if (line.rfind("model name", 0) == 0) {
+            const size_t c = line.find(':');
+            return c == std::string::npos ? line : line.substr(c + 2);
+        }
+    return "unknown CPU";
+}
+
+struct WorldRun {
+    WorldSpec spec;
+    fs::path dir;
+    json stats, bake, baseline;
+    bool baked = false, baselined = false;
+    long bakePeakKiB = 0;
+    double bakeJobWall = 0, bakeJobCpu = 0;
+    std::string loadBefore, loadAfter;
+    long baselinePeakKiB = 0;
+
+    bool partial() const { return baked && bake["chunksBaked"].get<uint64_t>() < bake["chunksTotal"].get<uint64_t>(); }
+    double perChunk() const { return bake["totalSeconds"].get<double>() / bake["chunksBaked"].get<double>(); }
+    double projectedTotal() const { return perChunk() * bake["chunksTotal"].get<double>(); }
+    const json* stage(const std::string& name) const {
+        for (const json& s : bake["stages"])
+            if (s["name"] == name) return &s;
+        return nullptr;
+    }
+    double pipelineRaysPerSecond() const {
+        const json* s = stage("raycast");
+        if (!s || (*s)["seconds"].get<double>() <= 0) return 0;
+        return (*s)["raysCast"].get<double>() / (*s)["seconds"].get<double>();
+    }
+    // Peak RSS projected to the whole world for a partial bake: what the first chunk needed
+    // plus the growth per chunk after it (verdict tables are kept for every chunk).
+    double projectedPeakKiB() const {
+        const double first = bake["rssAfterFirstChunkKiB"].get<double>();
+        const double n = bake["chunksBaked"].get<double>(), total = bake["chunksTotal"].get<double>();
+        if (!partial() || n < 2 || first <= 0) return double(bakePeakKiB);
+        return std::max(double(bakePeakKiB), first + (double(bakePeakKiB) - first) / (n - 1) * (total - 1));
+    }
+};
+
+void printWorlds(const std::vector<WorldRun>& runs) {
+    std::printf("\n## Worlds\n\n");
+    std::printf("| world | chunks | models | trees | rocks | buildings (+ interior props) | props | grass (castsShadow false) | "
+                "floating / hidden | unique meshes (triangles) | placed triangles | lights (dir / point / spot) | "
+                "on disk | files | generated in | generation peak RSS |\n");
+    std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (const WorldRun& w : runs) {
+        const json& s = w.stats;
+        auto kind = [&](const char* k) { return s["byKind"].contains(k) ? s["byKind"][k].get<uint64_t>() : 0; };
+        const std::string gen = s.contains("generationWallSeconds")
+                                    ? seconds(s["generationWallSeconds"].get<double>()) + " s (build " +
+                                          seconds(s["buildSeconds"].get<double>()) + " + write " +
+                                          seconds(s["writeSeconds"].get<double>()) + ")"
+                                    : "?";
+        std::printf("| %s (%dx%d) | %d | %s | %s | %s | %s (+ %s) | %s | %s | %s / %s | %d (%s) | %s | %d / %d / %d | %.1f MB | %s | %s%s | %s |\n",
+                    w.spec.name.c_str(), w.spec.chunksX, w.spec.chunksZ, s["chunks"].get<int>(),
+                    count(s["models"].get<uint64_t>()).c_str(), count(kind("tree")).c_str(), count(kind("rock")).c_str(),
+                    count(kind("building")).c_str(), count(kind("interior")).c_str(), count(kind("prop")).c_str(),
+                    count(kind("grass")).c_str(), count(kind("floating")).c_str(), count(kind("hidden")).c_str(),
+                    s["uniqueMeshes"].get<int>(), count(s["uniqueMeshTriangles"].get<uint64_t>()).c_str(),
+                    count(s["placedTriangles"].get<uint64_t>()).c_str(), s["directionalLights"].get<int>(),
+                    s["pointLights"].get<int>(), s["spotLights"].get<int>(), s["bytesOnDisk"].get<double>() / 1e6,
+                    count(s["files"].get<uint64_t>()).c_str(), gen.c_str(),
+                    s.value("cached", false) ? " (cached)" : "",
+                    s.contains("generationPeakRssKiB") ? mib(s["generationPeakRssKiB"].get<double>()).c_str() : "?");
+    }
+}
+
+void printBake(const WorldRun& w) {
+    const json& b = w.bake;
+    const double chunks = b["chunksBaked"].get<double>();
+    std::printf("\n## World %s: bake (%s of %s chunks%s, %d threads)\n\n", w.spec.name.c_str(),
+                count(b["chunksBaked"].get<uint64_t>()).c_str(), count(b["chunksTotal"].get<uint64_t>()).c_str(),
+                w.partial() ? ", evenly spread; totals below are for these chunks" : "", b["threads"].get<int>());
+    std::printf("| stage | seconds | s per chunk | rays cast | rays/s | exact (CGAL) tests | GPU passes | bits examined | "
+                "proved 0 | proved 1 |\n");
+    std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    const double load = b["loadSeconds"].get<double>();
+    std::printf("| load (read + meshes) | %s | %s | | | | | | | |\n", seconds(load).c_str(), seconds(load / chunks).c_str());
+    double staged = 0;
+    for (const json& s : b["stages"]) {
+        const double sec = s["seconds"].get<double>();
+        staged += sec;
+        const uint64_t rays = s["raysCast"].get<uint64_t>();
+        std::printf("| %s | %s | %s | %s | %s | %s | 0 | %s | %s | %s |\n", s["name"].get<std::string>().c_str(),
+                    seconds(sec).c_str(), seconds(sec / chunks).c_str(), rays ? count(rays).c_str() : "0",
+                    rays && sec > 0 ? rate(double(rays) / sec).c_str() : "", count(s["exactTests"].get<uint64_t>()).c_str(),
+                    count(s["bitsExamined"].get<uint64_t>()).c_str(), count(s["provedCulled"].get<uint64_t>()).c_str(),
+                    count(s["provedKept"].get<uint64_t>()).c_str());
+    }
+    // PLACE FOR THE GPU STAGE (issue 4, gpu/): when the pipeline has it, its StageTiming
+    // appears above like every other stage; the GPU baseline (the original method at
+    // 2048) is filled in by gpuBaselineSeconds() below.
+    std::printf("| gpu | n/a (gpu/ not built) | | | | | n/a | | | |\n");
+    const double total = b["totalSeconds"].get<double>();
+    const double other = std::max(0.0, total - load - staged);
+    std::printf("| other (windows, verdict tables) | %s | %s | | | | | | | |\n", seconds(other).c_str(),
+                seconds(other / chunks).c_str());
+    const json& bits = b["bits"];
+    std::printf("| **total** | **%s** | **%s** | | | | | %s bits | %s | %s |\n", seconds(total).c_str(),
+                seconds(total / chunks).c_str(), count(bits["bits"].get<uint64_t>()).c_str(),
+                count(bits["culled"].get<uint64_t>()).c_str(), count(bits["provedKept"].get<uint64_t>()).c_str());
+    std::printf("\nBits: %s groups x lights = %s; proved 0: %s", count(bits["groups"].get<uint64_t>()).c_str(),
+                count(bits["bits"].get<uint64_t>()).c_str(), count(bits["culled"].get<uint64_t>()).c_str());
+    std::string by;
+    for (auto it = bits["culledBy"].begin(); it != bits["culledBy"].end(); ++it)
+        by += (by.empty() ? "" : ", ") + it.key() + " " + count(it.value().get<uint64_t>());
+    std::printf(" (%s); proved 1: %s; kept undecided (written 1): %s.\n", by.c_str(),
+                count(bits["provedKept"].get<uint64_t>()).c_str(), count(bits["undecided"].get<uint64_t>()).c_str());
+    std::printf("Peak RSS of the bake process: %s (after load + first chunk: %s)%s. Process: wall %s s, CPU %s s "
+                "(%.2f cores busy); load average before / after: %s / %s.",
+                mib(double(w.bakePeakKiB)).c_str(), mib(b["rssAfterFirstChunkKiB"].get<double>()).c_str(),
+                w.partial() ? fmt(", projected to every chunk: %.0f MiB", w.projectedPeakKiB() / 1024).c_str() : "",
+                seconds(w.bakeJobWall).c_str(), seconds(w.bakeJobCpu).c_str(),
+                w.bakeJobWall > 0 ? w.bakeJobCpu / w.bakeJobWall : 0.0, w.loadBefore.c_str(), w.loadAfter.c_str());
+    if (w.partial())
+        std::printf(" Projected full bake: %s s (%s s per chunk x %s chunks).", seconds(w.projectedTotal()).c_str(),
+                    seconds(w.perChunk()).c_str(), count(b["chunksTotal"].get<uint64_t>()).c_str());
+    if (b["warnings"].get<uint64_t>() > 0) {
+        std::printf(" **%s input warnings**, first:", count(b["warnings"].get<uint64_t>()).c_str());
+        for (const json& m : b["firstWarnings"]) std::printf(" `%s`", m.get<std::string>().c_str());
+    }
+    std::printf("\n\n| light | type | proved 1 | proved 0 (by stage) | undecided |\n|---|---|---:|---|---:|\n");
+    for (const json& l : b["lights"]) {
+        const json& c = l["counts"];
+        std::string culled;
+        for (auto it = c.begin(); it != c.end(); ++it)
+            if (it.key().rfind("culled:", 0) == 0)
+                culled += (culled.empty() ? "" : ", ") + it.key().substr(7) + " " + count(it.value().get<uint64_t>());
+        std::printf("| %s | %s | %s | %s | %s |\n", l["name"].get<std::string>().c_str(), l["type"].get<std::string>().c_str(),
+                    count(c.value("kept", uint64_t(0))).c_str(), culled.c_str(), count(c.value("undecided", uint64_t(0))).c_str());
+    }
+}
+
+// The GPU method (issue 4) at 2048 on the same world: not available until gpu/ is built.
+// When it is, run it here in a child like the bake and return its seconds.
+std::optional<double> gpuBaselineSeconds(const WorldRun&) { return std::nullopt; }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    const Options o = parseArgs(argc, argv);
+    std::error_code ec;
+    fs::create_directories(o.work, ec);
+    if (ec) usage(("cannot create work directory " + o.work.string()).c_str());
+
+    std::vector<WorldRun> runs;
+    for (const std::string& name : o.sizes) {
+        WorldRun w;
+        worldByName(name, w.spec);
+        if (!ensureWorld(w.spec, o, w.dir, w.stats)) {
+            std::fprintf(stderr, "bake_bench: generating world %s failed\n", name.c_str());
+            return 1;
+        }
+        runs.push_back(std::move(w));
+    }
+    std::printf("# bake_bench\n\nMachine: %s, %u hardware threads, %.1f GiB RAM; bake threads: %s; load average %s. "
+                "Work dir: %s\n",
+                cpuModel().c_str(), std::thread::hardware_concurrency(),
+                double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE)) / (1024.0 * 1024 * 1024),
+                o.threads > 0 ? std::to_string(o.threads).c_str() : "all", loadAverage().c_str(), o.work.string().c_str());
+    if (o.genOnly) {
+        printWorlds(runs);
+        return 0;
+    }
+
+    for (WorldRun& w : runs) {
+        const fs::path out = o.work / ("bake-" + w.spec.name + ".json");
+        fs::remove(out, ec);
+        std::fprintf(stderr, "[%s] baking ...\n", w.spec.name.c_str());
+        w.loadBefore = loadAverage();
+        const Job job = runJob(o.fork, [&] { return bakeChild(w.spec, w.dir, o, out); });
+        w.loadAfter = loadAverage();
+        w.bakeJobCpu = job.cpuSeconds;
+        w.baked = job.ok && readJson(out, w.bake);
+        w.bakePeakKiB = job.maxRssKiB;
+        w.bakeJobWall = job.wallSeconds;
+        if (!w.baked) {
+            std::fprintf(stderr, "bake_bench: bake of %s failed\n", w.spec.name.c_str());
+            continue;
+        }
+        if (o.baseline) {
+            const json* rc = w.stage("raycast");
+            uint64_t n = o.baselineRays;
+            if (n == 0) n = std::min<uint64_t>(rc ? (*rc)["raysCast"].get<uint64_t>() : 0, kDefaultBaselineCap);
+            if (n == 0) n = kDefaultBaselineCap;
+            const fs::path bout = o.work / ("baseline-" + w.spec.name + ".json");
+            fs::remove(bout, ec);
+            std::fprintf(stderr, "[%s] Embree baseline, %s rays per loop ...\n", w.spec.name.c_str(), count(n).c_str());
+            const Job bj = runJob(o.fork, [&] {
+                const json j = runEmbreeBaseline(w.dir.string(), 0, 0, n, o.threads);
+                if (j.contains("error")) std::fprintf(stderr, "bake_bench: baseline: %s\n", j["error"].get<std::string>().c_str());
+                return writeJson(bout, j) && !j.contains("error") ? 0 : 1;
+            });
+            w.baselined = bj.ok && readJson(bout, w.baseline);
+            w.baselinePeakKiB = bj.maxRssKiB;
+        }
+    }
+
+    printWorlds(runs);
+    for (const WorldRun& w : runs)
+        if (w.baked) printBake(w);
+
+    // Embree baseline.
+    std::printf("\n## Raycast stage vs a bare Embree loop over the same scene\n\n");
+    std::printf("Scene: the window of chunk (0,0) (it and its 8 neighbours), built as the stage builds it. Rays: the "
+                "stage's first rays for that window (every centre group x every reaching light x every sample point, "
+                "from the light), cycled; the loops trace as many as the stage made Embree calls (capped). The stage's "
+                "rays/s is its Embree calls (p ray + q steps) over its whole time, scene builds and sampling included.\n\n");
+    std::printf("| world | window objects / triangles | rays per loop | bare rtcOccluded1 rays/s | bare rtcOccluded16 rays/s | "
+                "bare closest-hit rtcIntersect1 + alpha filter rays/s | bare all-hit rtcIntersect1 rays/s (hits per ray) | "
+                "pipeline raycast stage rays/s | pipeline / occluded1 | pipeline / occluded16 | pipeline / closest-hit |\n");
+    std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (const WorldRun& w : runs) {
+        if (!w.baked) continue;
+        const double pipe = w.pipelineRaysPerSecond();
+        if (!w.baselined) {
+            std::printf("| %s | | | n/a | n/a | n/a | n/a | %s | n/a | n/a | n/a |\n", w.spec.name.c_str(), rate(pipe).c_str());
+            continue;
+        }
+        const json& b = w.baseline;
+        const double o1 = b["occluded1"]["raysPerSecond"].get<double>(), o16 = b["occluded16"]["raysPerSecond"].get<double>();
+        const double ch = b["closest1"]["raysPerSecond"].get<double>();
+        const double ah = b["allhits1"]["raysPerSecond"].get<double>();
+        std::printf("| %s | %s / %s | %s | %s | %s | %s | %s (%.1f) | %s | **%.3f** | **%.3f** | %.3f |\n", w.spec.name.c_str(),
+                    count(b["window"]["objects"].get<uint64_t>()).c_str(), count(b["window"]["triangles"].get<uint64_t>()).c_str(),
+                    count(b["rays"].get<uint64_t>()).c_str(), rate(o1).c_str(), rate(o16).c_str(), rate(ch).c_str(),
+                    rate(ah).c_str(), b["allhits1"]["meanHitsVisited"].get<double>(), rate(pipe).c_str(), pipe / o1, pipe / o16,
+                    pipe / ch);
+    }
+
+    // Targets.
+    const WorldRun* M = nullptr;
+    const WorldRun* L = nullptr;
+    for (const WorldRun& w : runs) {
+        if (w.spec.name == "M" && w.baked) M = &w;
+        if (w.spec.name == "L" && w.baked) L = &w;
+    }
+    std::printf("\n## Targets (issue 6), measured side by side in this run\n\n| target | measured | status |\n|---|---|---|\n");
+    {
+        std::optional<double> gpu = M ? gpuBaselineSeconds(*M) : std::nullopt;
+        if (M && gpu)
+            std::printf("| analytic bake >= %.0fx faster than the GPU method at 2048 on M, zero false culls | %.1fx | %s |\n",
+                        kTargetGpuSpeedup, *gpu / M->bake["totalSeconds"].get<double>(),
+                        *gpu / M->bake["totalSeconds"].get<double>() >= kTargetGpuSpeedup ? "met" : "NOT met");
+        else
+            std::printf("| analytic bake >= %.0fx faster than the GPU method at 2048 on M, zero false culls | gpu baseline s: "
+                        "n/a (gpu/ not built) | not measured |\n",
+                        kTargetGpuSpeedup);
+    }
+    {
+        const WorldRun* w = M;
+        if (!w || !w->baselined)
+            for (const WorldRun& r : runs)
+                if (r.baselined) w = &r;
+        if (w && w->baselined) {
+            const double ratio = w->pipelineRaysPerSecond() / w->baseline["occluded1"]["raysPerSecond"].get<double>();
+            std::printf("| raycast stage rays/s >= %.1f x bare Embree occlusion loop (rtcOccluded1), same scene | %.3f (world %s) | %s |\n",
+                        kTargetRaysRatio, ratio, w->spec.name.c_str(), ratio >= kTargetRaysRatio ? "met" : "NOT met");
+        } else {
+            std::printf("| raycast stage rays/s >= %.1f x bare Embree occlusion loop | n/a (baseline not run) | not measured |\n",
+                        kTargetRaysRatio);
+        }
+    }
+    if (M && L) {
+        const double ratio = L->perChunk() / M->perChunk();
+        const bool projected = L->partial() || M->partial();
+        std::printf("| L time per chunk within %.0f%% of M's (L total ~ 9x M) | %.3f (L %s s/chunk, M %s s/chunk)%s | %s |\n",
+                    kTargetLinearity * 100, ratio, seconds(L->perChunk()).c_str(), seconds(M->perChunk()).c_str(),
+                    projected ? ", from a partial bake" : "",
+                    std::abs(ratio - 1) <= kTargetLinearity ? (projected ? "met (projected)" : "met")
+                                                            : (projected ? "NOT met (projected)" : "NOT met"));
+    } else {
+        std::printf("| L time per chunk within %.0f%% of M's | n/a (needs M and L in one run: --sizes M,L) | not measured |\n",
+                    kTargetLinearity * 100);
+    }
+    if (L) {
+        const double gib = L->projectedPeakKiB() / (1024.0 * 1024.0);
+        std::printf("| peak memory of L < %.0f GiB | %.2f GiB%s | %s |\n", kTargetMemoryGiB, gib,
+                    L->partial() ? " (projected from a partial bake)" : "",
+                    gib < kTargetMemoryGiB ? (L->partial() ? "met (projected)" : "met")
+                                           : (L->partial() ? "NOT met (projected)" : "NOT met"));
+    } else {
+        std::printf("| peak memory of L < %.0f GiB | n/a (L not baked) | not measured |\n", kTargetMemoryGiB);
+    }
+
+    if (!o.jsonOut.empty()) {
+        json all = json::array();
+        for (const WorldRun& w : runs)
+            all.push_back({{"world", w.spec.name}, {"dir", w.dir.string()}, {"stats", w.stats}, {"bake", w.bake},
+                           {"bakePeakRssKiB", w.bakePeakKiB}, {"baseline", w.baseline}, {"baselinePeakRssKiB", w.baselinePeakKiB}});
+        writeJson(o.jsonOut, all);
+    }
+    for (const WorldRun& w : runs)
+        if (!w.baked) return 1;
+    return 0;
+}

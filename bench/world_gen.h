@@ -1,0 +1,71 @@
+// Benchmark worlds: a chunked game world of any size, generated deterministically from a
+// seed, in the scene format (../shared/spec/scene-format.md), for bench/bake_bench.
+//
+// Per chunk (100 m): hilly terrain (33 x 33 samples), a forest of alpha-tested trees
+// (opaque trunk group + alpha-tested canopy group, five variants), rocks (four irregular
+// closed meshes, a third of them partly buried), buildings (walls + roof groups; halls
+// with an open door and props inside), props (crates, barrels, fences, lamp posts), grass
+// cards with castsShadow false, and a few floating or hidden objects (drones, balloons
+// hundreds of metres up, chests buried under the terrain). Lights: three directional (a
+// low sun 10 degrees above the horizon with bias 0.05, a high sun, a moon) and point/spot
+// lights scattered over the world (total <= 32, the format's limit).
+//
+// Few unique meshes (22), many placements: every model resource is written once and
+// placed by transform (instancing), as in a real game world.
+//
+// Deterministic: SplitMix64 (testing::DeterministicRng) seeded per chunk from the world
+// seed and the chunk's grid position, our own formulas for every distribution, no
+// std::random_device or std distributions; the same spec writes the same bytes.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+
+namespace shadowcull::bench {
+
+struct WorldSpec {
+    std::string name = "custom";  // for reports and cache directory names
+    int chunksX = 3, chunksZ = 3;  // grid size; chunks gx in [-chunksX/2, chunksX - chunksX/2)
+    uint64_t seed = 1;
+    double objectsPerChunk = 280.0;  // models per chunk (terrain not counted)
+    double chunkSize = 100.0;        // metres
+    int terrainSamples = 33;         // N x N heightmap per chunk
+    int localLights = 20;            // point + spot lights over the whole world (plus 3 directional)
+    int neighbours = 1;              // chunks loaded on each side of the baked one
+};
+
+// The benchmark sizes of issue 6. Same density everywhere (280 models per chunk), so that
+// per-chunk figures compare across sizes.
+WorldSpec worldS();  // 3 x 3 chunks, ~2.5k models
+WorldSpec worldM();  // 10 x 10 chunks, ~28k models
+WorldSpec worldL();  // 30 x 30 chunks, ~250k models
+// "S", "M", "L" (case-insensitive); false for anything else.
+bool worldByName(const std::string& name, WorldSpec& out);
+
+// A hash of every field of the spec and of the generator's version: the cache key of a
+// written world (a changed generator or spec never reuses an old directory).
+uint64_t specHash(const WorldSpec& spec);
+std::string specHashHex(const WorldSpec& spec);
+
+struct WorldStats {
+    int chunks = 0;
+    uint64_t models = 0;                       // placed models
+    std::map<std::string, uint64_t> byKind;    // "tree", "rock", "building", ... -> placements
+    int uniqueMeshes = 0;                      // model resources written (each once)
+    uint64_t uniqueMeshTriangles = 0;          // triangles over the unique meshes
+    uint64_t placedTriangles = 0;              // sum over placements, terrain included
+    uint64_t terrainTriangles = 0;
+    int lights = 0, directionalLights = 0, pointLights = 0, spotLights = 0;
+    uint64_t bytesOnDisk = 0;                  // every file written
+    uint64_t files = 0;
+    double buildSeconds = 0;                   // describing the world
+    double writeSeconds = 0;                   // writing the files
+};
+
+// Writes the world into `dir` (created; must not exist or be empty) and returns what it
+// holds. Throws std::runtime_error (I/O) or std::invalid_argument (a bad spec: more than
+// 32 lights, a grid beyond 16-bit chunk names, ...).
+WorldStats writeWorld(const WorldSpec& spec, const std::string& dir);
+
+}  // namespace shadowcull::bench

@@ -1,0 +1,168 @@
+#include "cli/sweep.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "core/format.h"
+
+namespace shadowcull::cli {
+
+namespace {
+
+// (chunk, element, group, light) -> decision, for comparing bakes bit by bit.
+using BitKey = std::tuple<int32_t, int32_t, int, int, int>;
+
+std::map<BitKey, const Decision*> index(const BakeResult& r) {
+    std::map<BitKey, const Decision*> m;
+    for (const ChunkVerdicts& cv : r.chunks)
+        for (size_t oi = 0; oi < cv.objects.size(); ++oi)
+            for (int g = 0; g < cv.objects[oi].groupCount; ++g)
+                for (int l = 0; l < cv.lightCount; ++l)
+                    m[{cv.coord.x, cv.coord.z, cv.objects[oi].elementIndex, g, l}] = &cv.at(oi, g, l);
+    return m;
+}
+
+std::string csvEscape(const std::string& s) {
+    if (s.find_first_of(",\"") == std::string::npos) return s;
+    std::string out = "\"";
+    for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return out + "\"";
+}
+
+}  // namespace
+
+std::vector<SweepSetting> analyticLadder(bool quick) {
+    std::vector<SweepSetting> ladder;
+    const std::vector<int> samples = quick ? std::vector<int>{16, 256} : std::vector<int>{16, 64, 256, 1024};
+    for (bool geometry : {false, true})
+        for (int n : samples) {
+            std::string name = std::string(geometry ? "raycast+geometry" : "raycast") + ", " + std::to_string(n) + " samples";
+            ladder.push_back({name, [n, geometry](const BakeOptions& base) {
+                                  BakeOptions o = base;
+                                  o.raycast.areaSamples = n;
+                                  o.useGeometry = geometry;
+                                  return runBake(o);
+                              }});
+        }
+    return ladder;
+}
+
+Expected<std::vector<SweepRow>> runSweep(const SweepOptions& options, const std::vector<SweepSetting>& ladder,
+                                         BakeResult* referenceOut) {
+    BakeOptions base;
+    base.spaceDir = options.spaceDir;
+    base.resourceRoot = options.resourceRoot;
+    base.threads = options.threads;
+    base.raycast.threads = options.threads;
+    base.write = false;
+
+    BakeOptions refOpt = base;
+    refOpt.raycast.areaSamples = options.referenceSamples;
+    refOpt.raycast.maxFeatureSamples = 4 * options.referenceSamples;
+    Expected<BakeResult> reference = runBake(refOpt);
+    if (!reference) return reference.error();
+    const auto ref = index(*reference);
+
+    std::vector<SweepRow> rows;
+    for (const SweepSetting& s : ladder) {
+        const auto t0 = std::chrono::steady_clock::now();
+        Expected<BakeResult> r = s.bake(base);
+        if (!r) return r.error();
+        SweepRow row;
+        row.setting = s.name;
+        row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        for (const auto& [key, d] : index(*r)) {
+            ++row.bits;
+            const bool one = d->verdict != Verdict::Culled;
+            (one ? row.written1 : row.written0)++;
+            auto it = ref.find(key);
+            if (it == ref.end()) continue;
+            const Decision& rd = *it->second;
+            if (rd.verdict == Verdict::Undecided) ++row.referenceUndecided;
+            else if (rd.verdict == Verdict::Kept && !one) ++row.falseCulls;
+            else if (rd.verdict == Verdict::Culled && one) ++row.falseKeeps;
+        }
+        rows.push_back(row);
+    }
+    if (referenceOut) *referenceOut = std::move(*reference);
+    return rows;
+}
+
+int reportSweep(const SweepOptions& options, const std::vector<SweepRow>& rows, std::ostream& out, std::ostream& err) {
+    out << "| setting | seconds | bits | written 0 | written 1 | false culls | false keeps | reference undecided |\n";
+    out << "|---|---:|---:|---:|---:|---:|---:|---:|\n";
+    char buf[64];
+    for (const SweepRow& r : rows) {
+        std::snprintf(buf, sizeof buf, "%.3f", r.seconds);
+        out << "| " << r.setting << " | " << buf << " | " << r.bits << " | " << r.written0 << " | " << r.written1 << " | "
+            << r.falseCulls << " | " << r.falseKeeps << " | " << r.referenceUndecided << " |\n";
+    }
+    out << "\nReference: raycast+geometry at " << options.referenceSamples
+        << " samples per group. False cull: written 0 where the reference has a witness. False keep: written 1 where "
+           "the reference proved 0. Bits the reference could not decide are counted apart.\n";
+    if (!options.csvPath.empty()) {
+        std::ofstream csv(options.csvPath, std::ios::binary);
+        csv << "setting,seconds,bits,written0,written1,false_culls,false_keeps,reference_undecided\n";
+        for (const SweepRow& r : rows) {
+            std::snprintf(buf, sizeof buf, "%.6f", r.seconds);
+            csv << csvEscape(r.setting) << "," << buf << "," << r.bits << "," << r.written0 << "," << r.written1 << ","
+                << r.falseCulls << "," << r.falseKeeps << "," << r.referenceUndecided << "\n";
+        }
+        if (!csv) {
+            err << "shadowcull: error: " << options.csvPath << ": cannot write\n";
+            return kExitIo;
+        }
+    }
+    if (!options.svgPath.empty()) {
+        // False keeps (y) against seconds (x, log scale); false culls marked in red.
+        const double w = 720, h = 420, left = 70, right = 250, top = 30, bottom = 50;
+        double tMin = 1e300, tMax = 0;
+        uint64_t kMax = 1;
+        for (const SweepRow& r : rows) {
+            tMin = std::min(tMin, std::max(r.seconds, 1e-4));
+            tMax = std::max(tMax, std::max(r.seconds, 1e-4));
+            kMax = std::max<uint64_t>(kMax, r.falseKeeps + r.falseCulls);
+        }
+        const double l0 = std::log10(tMin) - 0.1, l1 = std::log10(tMax) + 0.1;
+        auto X = [&](double s) { return left + (std::log10(std::max(s, 1e-4)) - l0) / (l1 - l0) * (w - left - right); };
+        auto Y = [&](double k) { return h - bottom - k / double(kMax) * (h - top - bottom); };
+        std::ostringstream svg;
+        svg << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h
+            << "\" font-family=\"sans-serif\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+        svg << "<line x1=\"" << left << "\" y1=\"" << h - bottom << "\" x2=\"" << w - right << "\" y2=\"" << h - bottom
+            << "\" stroke=\"black\"/>\n<line x1=\"" << left << "\" y1=\"" << top << "\" x2=\"" << left << "\" y2=\""
+            << h - bottom << "\" stroke=\"black\"/>\n";
+        svg << "<text x=\"" << (left + w - right) / 2 << "\" y=\"" << h - 12
+            << "\" text-anchor=\"middle\">seconds (log scale)</text>\n<text x=\"14\" y=\"" << (top + h - bottom) / 2
+            << "\" transform=\"rotate(-90 14 " << (top + h - bottom) / 2
+            << ")\" text-anchor=\"middle\">false keeps (+ false culls, red)</text>\n";
+        for (double e = std::ceil(l0); e <= l1; e += 1)
+            svg << "<text x=\"" << X(std::pow(10, e)) << "\" y=\"" << h - bottom + 14 << "\" text-anchor=\"middle\">"
+                << formatNumber(std::pow(10, e)) << "</text>\n";
+        svg << "<text x=\"" << left - 6 << "\" y=\"" << Y(double(kMax)) + 4 << "\" text-anchor=\"end\">" << kMax
+            << "</text>\n<text x=\"" << left - 6 << "\" y=\"" << Y(0) + 4 << "\" text-anchor=\"end\">0</text>\n";
+        for (size_t i = 0; i < rows.size(); ++i) {
+            const SweepRow& r = rows[i];
+            const double x = X(r.seconds), y = Y(double(r.falseKeeps + r.falseCulls));
+            svg << "<circle cx=\"" << x << "\" cy=\"" << y << "\" r=\"5\" fill=\"" << (r.falseCulls ? "#d62728" : "#1f77b4")
+                << "\"/>\n<text x=\"" << x + 7 << "\" y=\"" << y - 6 << "\">" << i + 1 << "</text>\n";
+            svg << "<text x=\"" << w - right + 10 << "\" y=\"" << top + 14 * double(i) << "\">" << i + 1 << ": " << r.setting
+                << "</text>\n";
+        }
+        svg << "</svg>\n";
+        std::ofstream f(options.svgPath, std::ios::binary);
+        f << svg.str();
+        if (!f) {
+            err << "shadowcull: error: " << options.svgPath << ": cannot write\n";
+            return kExitIo;
+        }
+    }
+    return kExitOk;
+}
+
+}  // namespace shadowcull::cli

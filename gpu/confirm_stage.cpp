@@ -1,0 +1,768 @@
+// Conservative GPU confirmation (see confirm_stage.h for what is proved and what is left).
+//
+// The idea is the original tool's: occlusion-query shadow caster culling (D. Bittner,
+// O. Mattausch, A. Silvennoinen, M. Wimmer, "Shadow Caster Culling for Efficient Shadow
+// Mapping", I3D 2011) - draw the receivers' depth and count, then query each caster. Here
+// every per-pixel quantity is a bound instead of a sample, so that "no sample passed" is a
+// proof. Conservative rasterisation (over-estimation by the half pixel diagonal in a
+// geometry shader, and depth bounds from the triangle's plane over the pixel square)
+// follows J. Hasselgren, T. Akenine-Moller, L. Ohlsson, "Conservative Rasterization",
+// GPU Gems 2, ch. 42, 2005.
+//
+// Why a pass that counts zero samples proves the bit is 0. Take any ray from the light
+// with a lit point p on group g and a receiver point q behind it (semantics.md); it runs
+// through some pixel square S of some view (views of a light cover every ray that can
+// reach a point within range and cone; pixel squares are closed, so a ray on a border
+// belongs to both pixels and to both cube faces). Then at S:
+//  1. g's fragment exists: S touches p's triangle, and the geometry shader's quad with the
+//     fragment shader's separating-axis test admits every pixel whose square (widened by
+//     a margin above float rounding) touches the triangle.
+//  2. zlo(S) <= depth(p): zlo is the minimum over S of the triangle's depth plane (an
+//     affine function of pixel position: the depth itself orthographically, 1/z in
+//     perspective), clamped by the vertices' depth range, minus margins.
+//  3. zlo(S) <= D_occ(S): an occluder sheet P is recorded at S only when (a) a point of S
+//     lies robustly inside one of P's triangles and (b) none of P's "crack" edges
+//     touches S. A crack edge is one not shared by exactly two of P's triangles running it
+//     in opposite directions; P's triangles all face the same way, so across any other
+//     edge they lie on both sides, and the boundary of P's projected union lies on crack
+//     edges. S is connected and meets no boundary, so it lies wholly inside the union, the ray meets P within S, at a depth at
+//     most the maximum over P's triangles touching S of their farthest depth over S: that
+//     maximum (plus margins) is what P records, and D_occ is the minimum over sheets. The
+//     ray's hit on P is not before p (p is lit; ties are not blocking), so D_occ(S) >=
+//     depth(p) >= zlo(S). g's own triangles may be part of a sheet: p lit still holds.
+//     Alpha-tested groups are never part of a sheet.
+//  4. R_max(S) > zlo(S) + bias': q's triangle is a receiver triangle (faces the light or is
+//     two-sided, not wholly out of range, not wholly under the terrain), touches S and
+//     has a farthest depth over S of at least depth(q) > depth(p) + bias. In perspective,
+//     depth is axial z and along one ray z differences are the distance differences times
+//     cos(angle to the axis) >= 1/sqrt(1 + 2 t^2), so bias' = bias / sqrt(1 + 2 t^2).
+// Hence the fragment passes. Zero passed fragments in every view means no such ray.
+
+#include "gpu/confirm_stage.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <numeric>
+#include <unordered_map>
+
+#include <glm/geometric.hpp>
+
+#include "core/light_reach.h"
+#include "gpu/conservative.h"
+#include "gpu/gl_api.h"
+#include "gpu/light_view.h"
+
+namespace shadowcull::gpu {
+
+namespace {
+
+constexpr float kBig = 1e30f;
+
+// One point per piece; the geometry shader turns it into the quad that covers every pixel
+// the (widened) piece can touch, clamped to the view.
+const char* kRasterVs = R"(#version 430 core
+layout(location = 0) in vec4 aV01;
+layout(location = 1) in vec4 aV2;
+layout(location = 2) in vec4 aPlane;
+layout(location = 3) in vec4 aMisc;
+layout(location = 4) in uint aId;
+out vec4 gV01;
+out vec4 gV2;
+out vec4 gPlane;
+out vec4 gMisc;
+flat out uint gId;
+void main() {
+    gV01 = aV01; gV2 = aV2; gPlane = aPlane; gMisc = aMisc; gId = aId;
+    gl_Position = vec4(0.0, 0.0, 0.0, 1.0);
+}
+)";
+
+const char* kRasterGs = R"(#version 430 core
+layout(points) in;
+layout(triangle_strip, max_vertices = 4) out;
+in vec4 gV01[];
+in vec4 gV2[];
+in vec4 gPlane[];
+in vec4 gMisc[];
+flat in uint gId[];
+flat out vec2 fP0;
+flat out vec2 fP1;
+flat out vec2 fP2;
+flat out vec4 fS;      // s0, orient, planeValid, kind
+flat out vec4 fPlane;  // a, b, zmin, zmax
+flat out vec2 fDil;    // dilate, margin
+flat out uint fId;
+uniform vec2 uSize;
+void corner(vec2 c) {
+    fP0 = gV01[0].xy; fP1 = gV01[0].zw; fP2 = gV2[0].xy;
+    fS = vec4(gV2[0].z, gV2[0].w, gMisc[0].z, gMisc[0].w);
+    fPlane = gPlane[0];
+    fDil = gMisc[0].xy;
+    fId = gId[0];
+    gl_Position = vec4(c / uSize * 2.0 - 1.0, 0.0, 1.0);
+    EmitVertex();
+}
+void main() {
+    vec2 p0 = gV01[0].xy, p1 = gV01[0].zw, p2 = gV2[0].xy;
+    // Half a pixel (the square's half side) + dilation + margin, and 0.01 px so that
+    // centres on the quad's edge are not lost to the rasteriser's tie rule.
+    float h = 0.5 + gMisc[0].x + gMisc[0].y + 0.01;
+    vec2 lo = max(min(min(p0, p1), p2) - h, vec2(0.0));
+    vec2 hi = min(max(max(p0, p1), p2) + h, uSize);
+    if (lo.x >= hi.x || lo.y >= hi.y) return;
+    corner(lo);
+    corner(vec2(hi.x, lo.y));
+    corner(vec2(lo.x, hi.y));
+    corner(hi);
+    EndPrimitive();
+}
+)";
+
+const char* kRasterFs = R"(#version 430 core
+flat in vec2 fP0;
+flat in vec2 fP1;
+flat in vec2 fP2;
+flat in vec4 fS;
+flat in vec4 fPlane;
+flat in vec2 fDil;
+flat in uint fId;
+uniform int uMode;          // 0 occluder sheet, 1 receivers, 2 caster query
+uniform bool uPerspective;  // s = 1/z (else s = depth)
+uniform float uDepthEps;    // metres, absolute depth margin
+uniform float uSizeMax;     // view size in pixels (bounds float rounding of coordinates)
+uniform float uBias;        // depth units; already reduced for perspective
+uniform bool uAnyReceiver;  // receivers unknown: every pixel may have one behind
+uniform uint uRecordCap;
+uniform uint uView;
+layout(binding = 0) uniform sampler2D uOcc;
+layout(binding = 1) uniform sampler2D uRecv;
+layout(std430, binding = 0) buffer Counts { uint counts[]; };
+layout(std430, binding = 1) buffer Records { uvec4 records[]; };
+layout(location = 0) out vec4 oValue;
+const float BIG = 1e30;
+
+// Separating axes for the square of half side h around c against the piece (a triangle,
+// or a segment when p2 == p1): x, y and the edge normals. Every test is widened by m.
+bool overlaps(vec2 c, float h, float m) {
+    vec2 q0 = fP0 - c, q1 = fP1 - c, q2 = fP2 - c;
+    if (min(min(q0.x, q1.x), q2.x) > h + m || max(max(q0.x, q1.x), q2.x) < -h - m) return false;
+    if (min(min(q0.y, q1.y), q2.y) > h + m || max(max(q0.y, q1.y), q2.y) < -h - m) return false;
+    vec2 e[3] = vec2[3](q1 - q0, q2 - q1, q0 - q2);
+    for (int i = 0; i < 3; ++i) {
+        vec2 n = vec2(-e[i].y, e[i].x);
+        float len = abs(n.x) + abs(n.y);
+        if (len == 0.0) continue;
+        float t0 = dot(q0, n), t1 = dot(q1, n), t2 = dot(q2, n);
+        float r = (h + m) * len;
+        if (min(min(t0, t1), t2) > r || max(max(t0, t1), t2) < -r) return false;
+    }
+    return true;
+}
+
+// Point c lies inside the triangle by at least m (orientation from the CPU).
+bool robustInside(vec2 c, float m) {
+    vec2 p[3] = vec2[3](fP0, fP1, fP2);
+    for (int i = 0; i < 3; ++i) {
+        vec2 e = p[(i + 1) % 3] - p[i];
+        vec2 d = c - p[i];
+        float cr = (e.x * d.y - e.y * d.x) * fS.y;
+        if (!(cr >= m * length(e))) return false;
+    }
+    return true;
+}
+
+// Bounds of the piece's depth over the square of half side h around c: the plane's
+// extremes at the square's corners, clamped by the vertices' range, widened by margins.
+void depthBounds(vec2 c, float h, out float zlo, out float zhi) {
+    zlo = fPlane.z;
+    zhi = fPlane.w;
+    if (fS.z > 0.5) {
+        float a = fPlane.x, b = fPlane.y;
+        vec2 d = c - fP0;
+        float sc = fS.x + a * d.x + b * d.y;
+        float g = abs(a) + abs(b);
+        float spread = g * h;
+        float err = 1e-6 * (abs(fS.x) + g * (abs(d.x) + abs(d.y) + h + abs(fP0.x) + abs(fP0.y) + uSizeMax));
+        float smin = sc - spread - err, smax = sc + spread + err;
+        if (!uPerspective) {
+            zlo = max(zlo, smin);
+            zhi = min(zhi, smax);
+        } else {
+            if (smax > 0.0) zlo = max(zlo, 1.0 / smax);
+            if (smin > 0.0) zhi = min(zhi, 1.0 / smin);
+        }
+    }
+    zlo -= uDepthEps + 1e-6 * abs(zlo);
+    zhi += uDepthEps + 1e-6 * abs(zhi);
+}
+
+void main() {
+    vec2 c = gl_FragCoord.xy;
+    float m = fDil.y;
+    if (uMode == 0) {
+        if (!overlaps(c, 0.5, m)) discard;
+        if (fS.w > 0.5) {  // a crack edge touches the pixel: this sheet does not cover it whole
+            oValue = vec4(BIG, 0.0, 0.0, 0.0);
+            return;
+        }
+        float zlo, zhi;
+        depthBounds(c, 0.5 + m, zlo, zhi);
+        // Any point of the square robustly inside suffices (the square meets no crack, so
+        // it lies wholly inside the sheet or wholly outside); five points, so that a
+        // centre on an edge shared inside the sheet is not lost.
+        bool inside = fS.y != 0.0 && (robustInside(c, m) || robustInside(c + vec2(0.25, 0.25), m) ||
+                                      robustInside(c + vec2(-0.25, 0.25), m) || robustInside(c + vec2(0.25, -0.25), m) ||
+                                      robustInside(c + vec2(-0.25, -0.25), m));
+        oValue = vec4(zhi, inside ? 1.0 : 0.0, 0.0, 0.0);
+    } else if (uMode == 1) {
+        float h = 0.5 + fDil.x;
+        if (!overlaps(c, h, m)) discard;
+        float zlo, zhi;
+        depthBounds(c, h + m, zlo, zhi);
+        oValue = vec4(zhi, 0.0, 0.0, 0.0);
+    } else {
+        oValue = vec4(0.0);
+        if (!overlaps(c, 0.5, m)) return;
+        float zlo, zhi;
+        depthBounds(c, 0.5 + m, zlo, zhi);
+        ivec2 pix = ivec2(c);
+        float occ = texelFetch(uOcc, pix, 0).r;
+        float rec = texelFetch(uRecv, pix, 0).r;
+        bool lit = zlo <= occ;
+        bool behind = uAnyReceiver || rec > zlo + uBias;
+        if (lit) atomicAdd(counts[2u * fId], 1u);
+        if (lit && behind) {
+            uint k = atomicAdd(counts[2u * fId + 1u], 1u);
+            if (k < uRecordCap) records[fId * uRecordCap + k] = uvec4(uint(pix.x), uint(pix.y), floatBitsToUint(zlo), uView);
+        }
+    }
+}
+)";
+
+const char* kResolveVs = R"(#version 430 core
+void main() {
+    vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);
+    gl_Position = vec4(p, 0.0, 1.0);
+}
+)";
+
+// A sheet's pixel counts when its centre was robustly inside and no crack touched it.
+const char* kResolveFs = R"(#version 430 core
+layout(binding = 0) uniform sampler2D uWork;
+layout(location = 0) out vec4 oValue;
+void main() {
+    vec2 v = texelFetch(uWork, ivec2(gl_FragCoord.xy), 0).rg;
+    if (v.g < 0.5 || v.r >= 1e29) discard;
+    oValue = vec4(v.r, 0.0, 0.0, 1.0);
+}
+)";
+
+struct UnionFind {
+    std::vector<uint32_t> parent;
+    explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
+    uint32_t find(uint32_t x) {
+        while (parent[x] != x) x = parent[x] = parent[parent[x]];
+        return x;
+    }
+    void unite(uint32_t a, uint32_t b) {
+        a = find(a), b = find(b);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+};
+
+struct TriRef {
+    uint32_t object, triangle;
+};
+
+// A connected opaque sheet of one object: triangles facing the same way, joined across
+// edges shared by exactly two of them; `orient` is their screen orientation.
+struct Sheet {
+    std::vector<TriRef> triangles;
+    std::vector<TriRef> cracks;  // (object, edge index)
+    int orient = 0;
+};
+
+struct Caster {
+    uint32_t object, triangle, id;
+};
+
+}  // namespace
+
+struct GpuConfirmStage::Gl {
+    std::unique_ptr<GlSession> session;
+    GLuint raster = 0, resolve = 0;
+    RenderTarget work, occ, recv;
+    GLuint vao = 0, vbo = 0, emptyVao = 0;
+    GLuint ssbo[2] = {0, 0};
+};
+
+// Per run: the window's triangles and, per mesh, its edges.
+struct GpuConfirmStage::LightWork {
+    const WindowTriangles* tris = nullptr;
+    std::unordered_map<const Mesh*, std::unique_ptr<MeshEdges>> edges;
+    const MeshEdges& edgesOf(const Mesh* mesh, const std::vector<uint32_t>& triangles) {
+        auto& e = edges[mesh];
+        if (!e) e = std::make_unique<MeshEdges>(*mesh, triangles);
+        return *e;
+    }
+};
+
+GpuConfirmStage::GpuConfirmStage(GpuConfirmOptions options) : options_(options) {}
+GpuConfirmStage::~GpuConfirmStage() = default;  // destroying the context frees its objects
+
+Status GpuConfirmStage::ensureGl() {
+    if (gl_) return gl_->session->makeCurrent();
+    const int res = options_.resolution;
+    if (res < 1) return makeError(ErrorKind::BadInput, "", 0, "GPU resolution must be at least 1");
+    auto g = std::make_unique<Gl>();
+    Expected<std::unique_ptr<GlSession>> s = openGlSession();
+    if (!s) return s.error();
+    g->session = std::move(*s);
+    const GlApi& gl = g->session->gl;
+    GLint maxSize = 0;
+    gl.GetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
+    if (res > maxSize)
+        return makeError(ErrorKind::Internal, "", 0,
+                         "GPU resolution " + std::to_string(res) + " exceeds the texture limit " + std::to_string(maxSize));
+    Expected<GLuint> raster = gl.program(kRasterVs, kRasterGs, kRasterFs);
+    if (!raster) return raster.error();
+    g->raster = *raster;
+    Expected<GLuint> resolve = gl.program(kResolveVs, nullptr, kResolveFs);
+    if (!resolve) return resolve.error();
+    g->resolve = *resolve;
+    Expected<RenderTarget> work = makeRenderTarget(gl, res, res, {GL_RG32F}, false);
+    if (!work) return work.error();
+    g->work = *work;
+    Expected<RenderTarget> occ = makeRenderTarget(gl, res, res, {GL_R32F}, false);
+    if (!occ) return occ.error();
+    g->occ = *occ;
+    Expected<RenderTarget> recv = makeRenderTarget(gl, res, res, {GL_R32F}, false);
+    if (!recv) return recv.error();
+    g->recv = *recv;
+    gl.GenVertexArrays(1, &g->vao);
+    gl.GenVertexArrays(1, &g->emptyVao);
+    gl.GenBuffers(1, &g->vbo);
+    gl.BindVertexArray(g->vao);
+    gl.BindBuffer(GL_ARRAY_BUFFER, g->vbo);
+    const GLsizei stride = sizeof(RasterPiece);
+    for (GLuint k = 0; k < 4; ++k) {
+        gl.EnableVertexAttribArray(k);
+        gl.VertexAttribPointer(k, 4, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(size_t(16 * k)));
+    }
+    gl.EnableVertexAttribArray(4);
+    gl.VertexAttribIPointer(4, 1, GL_UNSIGNED_INT, stride, reinterpret_cast<const void*>(size_t(64)));
+    gl.BindVertexArray(0);
+    gl.GenBuffers(2, g->ssbo);
+    if (Status st = gl.check("setting up the confirmation passes"); !st) return st;
+    gl_ = std::move(g);
+    return Status::ok();
+}
+
+Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& stats) {
+    const auto t0 = std::chrono::steady_clock::now();
+    groups_.clear();
+    viewStats_.clear();
+    const std::vector<bool> lights = lightsWithUndecided(cv);
+    if (std::none_of(lights.begin(), lights.end(), [](bool b) { return b; })) return Status::ok();
+    if (Status s = ensureGl(); !s) return s;
+    WindowTriangles tris(w);
+    LightWork work;
+    work.tris = &tris;
+    for (int l = 0; l < cv.lightCount; ++l) {
+        if (!lights[size_t(l)]) continue;
+        const size_t first = groups_.size();
+        if (Status s = runLight(w, cv, l, work); !s) return s;
+        for (size_t k = first; k < groups_.size(); ++k) {
+            ++stats.bitsExamined;
+            if (cv.at(groups_[k].object, groups_[k].group, l).stage == name()) ++stats.provedCulled;
+        }
+    }
+    stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return Status::ok();
+}
+
+Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, LightWork& work) {
+    const Light& L = w.lsLights[size_t(l)];
+    const bool persp = L.type != LightType::Directional;
+    const int res = options_.resolution;
+    const WindowTriangles& tris = *work.tris;
+
+    // The bits to examine: undecided (group, light l) of the centre chunk. Query id = index.
+    std::vector<std::vector<int>> queryOf(w.objects.size());
+    std::vector<GroupPixels> queries;
+    for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+        const ObjectVerdicts& ov = cv.objects[oi];
+        if (ov.windowObject < 0) continue;
+        for (int g = 0; g < ov.groupCount; ++g) {
+            if (cv.at(oi, g, l).verdict != Verdict::Undecided) continue;
+            auto& q = queryOf[size_t(ov.windowObject)];
+            if (q.empty()) q.assign(size_t(ov.groupCount), -1);
+            q[size_t(g)] = int(queries.size());
+            GroupPixels gp;
+            gp.object = oi;
+            gp.group = g;
+            gp.light = l;
+            queries.push_back(gp);
+        }
+    }
+    if (queries.empty()) return Status::ok();
+
+    const std::vector<LightView> views = lightViews(w, L, res);
+    if (views.empty()) return Status::ok();
+    // Perspective: a near plane below all geometry, so clipping there loses nothing of the
+    // frustum. Points of the guard frustum (|x|,|y| <= 2tz) with z < near lie within
+    // near * sqrt(1 + 8t^2) of the light, less than half the nearest geometry's distance.
+    double nearZ = 0;
+    if (persp) {
+        double dmin = 1e300;
+        for (size_t k = 0; k < w.objects.size(); ++k) {
+            if (distanceToBox(L.position, w.objects[k].lsBounds) >= dmin) continue;
+            const auto& to = tris.objects[k];
+            const auto& mt = w.objects[k].mesh->triangles;
+            for (uint32_t t : to.triangles)
+                dmin = std::min(dmin, pointTriangleDistance(L.position, to.positions[mt[t][0]], to.positions[mt[t][1]],
+                                                            to.positions[mt[t][2]]));
+        }
+        // Geometry touching the light: no near plane is below it. Leave the bits undecided.
+        if (!(dmin > 1e-6 * (L.range + glm::length(L.position) + 1.0))) return Status::ok();
+        const double g = 2 * views[0].t;
+        nearZ = dmin / (2 * std::sqrt(1 + 2 * g * g));
+    }
+    const glm::dvec3 W = glm::normalize(L.direction);
+    auto rayDir = [&](const glm::dvec3& a) { return persp ? a - L.position : W; };
+    // With a filter radius in perspective, or skipped objects, receivers are not bounded:
+    // only "never lit" can be proved.
+    const bool anyReceiver = w.skippedObjects > 0 || (persp && L.filterRadius > 0);
+    const double t = views[0].t;
+    const double biasEff = persp ? L.bias / std::sqrt(1 + 2 * t * t) : L.bias;
+
+    // Classify every triangle for this light: occluder sheets, receivers, casters.
+    std::vector<Sheet> sheets;
+    std::vector<TriRef> receivers;
+    std::vector<Caster> casters;
+    for (size_t k = 0; k < w.objects.size(); ++k) {
+        const WindowObject& o = w.objects[k];
+        const Mesh& mesh = *o.mesh;
+        const auto& to = tris.objects[k];
+        const bool terrainRule = w.hasTerrain && o.kind != ChunkObject::Kind::Terrain;
+        std::vector<int8_t> cls(mesh.triangles.size(), 0);  // +1 CCW on screen, -1 CW, 0 not an occluder
+        for (uint32_t tr : to.triangles) {
+            const auto& tri = mesh.triangles[tr];
+            const glm::dvec3 &a = to.positions[tri[0]], &b = to.positions[tri[1]], &c = to.positions[tri[2]];
+            const glm::dvec3 n = glm::cross(b - a, c - a);
+            const glm::dvec3 rd = rayDir(a);
+            const double f = glm::dot(n, rd), tol = 1e-9 * glm::length(n) * glm::length(rd);
+            const PrimitiveGroup& pg = mesh.groups[mesh.triangleGroup[tr]];
+            // Screen orientation: U x V = -W, so a triangle is counter-clockwise exactly
+            // when its geometric normal points against the light's travel.
+            if (!pg.alphaTested && std::abs(f) > tol) cls[tr] = f < 0 ? 1 : -1;
+            if (!anyReceiver) {
+                const double front = o.flipsWinding ? -f : f;
+                if (pg.twoSided() || front <= tol) {  // not certainly facing away
+                    Aabb tb;
+                    tb.extend(a), tb.extend(b), tb.extend(c);
+                    bool out = persp && distanceToBox(L.position, tb) > L.range * (1 + 1e-6) + 1e-6;
+                    if (!out && terrainRule) {
+                        const std::optional<double> h = w.lsTerrainMinOver(tb.min.x, tb.min.z, tb.max.x, tb.max.z);
+                        out = h && tb.max.y < *h - w.terrainTolerance - 1e-6 * (std::abs(*h) + 1.0);
+                    }
+                    if (!out) receivers.push_back({uint32_t(k), tr});
+                }
+            }
+            if (!queryOf[k].empty()) {
+                const int id = queryOf[k][mesh.triangleGroup[tr]];
+                if (id >= 0) casters.push_back({uint32_t(k), tr, uint32_t(id)});
+            }
+        }
+        // Sheets: join triangles of one class across edges shared by exactly two of them
+        // running the edge in opposite directions (they lie on both sides of it).
+        const MeshEdges& edges = work.edgesOf(o.mesh, to.triangles);
+        UnionFind uf(mesh.triangles.size());
+        std::vector<uint8_t> good(edges.count(), 0);  // bit 0: class +1, bit 1: class -1
+        for (size_t e = 0; e < edges.count(); ++e) {
+            for (int c = 0; c < 2; ++c) {
+                const int8_t want = c == 0 ? 1 : -1;
+                int count = 0;
+                uint32_t t1 = 0, t2 = 0;
+                bool f1 = false, f2 = false;
+                for (uint32_t u = edges.start[e]; u < edges.start[e + 1]; ++u) {
+                    const MeshEdges::Use& use = edges.uses[u];
+                    if (cls[use.triangle] != want) continue;
+                    if (count == 0) t1 = use.triangle, f1 = use.forward;
+                    else t2 = use.triangle, f2 = use.forward;
+                    ++count;
+                }
+                if (count == 2 && f1 != f2) {
+                    good[e] |= uint8_t(1u << c);
+                    uf.unite(t1, t2);
+                }
+            }
+        }
+        std::unordered_map<uint32_t, size_t> sheetOfRoot;
+        std::vector<std::pair<uint32_t, size_t>> cracks;  // (edge, sheet)
+        for (uint32_t tr : to.triangles) {
+            if (cls[tr] == 0) continue;
+            const uint32_t root = uf.find(tr);
+            auto [it, inserted] = sheetOfRoot.emplace(root, sheets.size());
+            if (inserted) {
+                sheets.emplace_back();
+                sheets.back().orient = cls[tr];
+            }
+            sheets[it->second].triangles.push_back({uint32_t(k), tr});
+            const uint8_t bit = uint8_t(cls[tr] > 0 ? 1 : 2);
+            for (int kk = 0; kk < 3; ++kk) {
+                const uint32_t e = edges.edgeOf[3 * size_t(tr) + size_t(kk)];
+                if (!(good[e] & bit)) cracks.push_back({e, it->second});
+            }
+        }
+        std::sort(cracks.begin(), cracks.end());
+        cracks.erase(std::unique(cracks.begin(), cracks.end()), cracks.end());
+        for (const auto& [e, s] : cracks) sheets[s].cracks.push_back({uint32_t(k), e});
+    }
+
+    // Storage for the query results, accumulated over the views.
+    const GlApi& gl = gl_->session->gl;
+    const uint32_t cap = uint32_t(std::max(1, options_.maxPixelsPerGroup));
+    const size_t Q = queries.size();
+    {
+        std::vector<uint32_t> zeros(2 * Q, 0);
+        gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, gl_->ssbo[0]);
+        gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(zeros.size() * 4), zeros.data(), GL_DYNAMIC_COPY);
+        gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, gl_->ssbo[1]);
+        gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(Q * cap * 16), nullptr, GL_DYNAMIC_COPY);
+        gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    }
+
+    auto position = [&](uint32_t object, uint32_t vertex) -> const glm::dvec3& {
+        return tris.objects[object].positions[vertex];
+    };
+    for (size_t vi = 0; vi < views.size(); ++vi) {
+        const LightView& view = views[vi];
+        const PieceBuilder pb(view, nearZ);
+        // Occluder sheets, each with the pixel rectangle its fragments can reach.
+        struct SheetPieces {
+            std::vector<RasterPiece> pieces;
+            int x0, y0, x1, y1;
+        };
+        std::vector<SheetPieces> sp;
+        for (const Sheet& s : sheets) {
+            SheetPieces p;
+            for (const TriRef& tr : s.triangles) {
+                const auto& tri = w.objects[tr.object].mesh->triangles[tr.triangle];
+                // expected screen orientation: counter-clockwise (+1) for class +1
+                pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]),
+                            s.orient, 0.0f, 0, p.pieces);
+            }
+            if (p.pieces.empty()) continue;
+            for (const TriRef& cr : s.cracks) {
+                const auto& ends = work.edges[w.objects[cr.object].mesh]->ends[cr.triangle];
+                pb.segment(position(cr.object, ends[0]), position(cr.object, ends[1]), p.pieces);
+            }
+            double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
+            for (const RasterPiece& r : p.pieces) {
+                lo[0] = std::min({lo[0], double(r.x0), double(r.x1), double(r.x2)});
+                hi[0] = std::max({hi[0], double(r.x0), double(r.x1), double(r.x2)});
+                lo[1] = std::min({lo[1], double(r.y0), double(r.y1), double(r.y2)});
+                hi[1] = std::max({hi[1], double(r.y0), double(r.y1), double(r.y2)});
+            }
+            const double pad = 0.5 + 0.1 + 1.0;
+            p.x0 = int(std::clamp(std::floor(lo[0] - pad), 0.0, double(view.width)));
+            p.x1 = int(std::clamp(std::ceil(hi[0] + pad), 0.0, double(view.width)));
+            p.y0 = int(std::clamp(std::floor(lo[1] - pad), 0.0, double(view.height)));
+            p.y1 = int(std::clamp(std::ceil(hi[1] + pad), 0.0, double(view.height)));
+            if (p.x0 >= p.x1 || p.y0 >= p.y1) continue;
+            sp.push_back(std::move(p));
+        }
+        // Batches: sheets whose rectangles are disjoint cannot touch the same pixel, so
+        // they share one work pass and one resolve.
+        std::vector<std::vector<size_t>> batches;
+        for (size_t s = 0; s < sp.size(); ++s) {
+            bool placed = false;
+            for (auto& b : batches) {
+                bool clash = false;
+                for (size_t o : b)
+                    if (sp[o].x0 < sp[s].x1 && sp[s].x0 < sp[o].x1 && sp[o].y0 < sp[s].y1 && sp[s].y0 < sp[o].y1) {
+                        clash = true;
+                        break;
+                    }
+                if (!clash) {
+                    b.push_back(s);
+                    placed = true;
+                    break;
+                }
+            }
+            if (!placed) batches.push_back({s});
+        }
+        std::vector<RasterPiece> all;
+        std::vector<std::pair<GLint, GLsizei>> batchRange;
+        for (const auto& b : batches) {
+            const GLint first = GLint(all.size());
+            for (size_t s : b) all.insert(all.end(), sp[s].pieces.begin(), sp[s].pieces.end());
+            batchRange.push_back({first, GLsizei(all.size()) - first});
+        }
+        float dilatePx = 0.0f;
+        if (!persp && L.filterRadius > 0)
+            dilatePx = float(L.filterRadius *
+                             std::max(view.width / (view.u1 - view.u0), view.height / (view.v1 - view.v0)));
+        const GLint recvFirst = GLint(all.size());
+        for (const TriRef& tr : receivers) {
+            const auto& tri = w.objects[tr.object].mesh->triangles[tr.triangle];
+            pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]), 0,
+                        dilatePx, 0, all);
+        }
+        const GLint castFirst = GLint(all.size());
+        for (const Caster& c : casters) {
+            const auto& tri = w.objects[c.object].mesh->triangles[c.triangle];
+            pb.triangle(position(c.object, tri[0]), position(c.object, tri[1]), position(c.object, tri[2]), 0, 0.0f,
+                        c.id, all);
+        }
+        const GLint end = GLint(all.size());
+        if (castFirst == end && !options_.collectViewStats) continue;  // the group is not in this view
+
+        // Upload and draw.
+        gl.BindBuffer(GL_ARRAY_BUFFER, gl_->vbo);
+        gl.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(all.size() * sizeof(RasterPiece)), all.data(), GL_STREAM_DRAW);
+        const GLuint prog = gl_->raster;
+        gl.UseProgram(prog);
+        gl.Uniform2f(gl.uniform(prog, "uSize"), float(view.width), float(view.height));
+        gl.Uniform1f(gl.uniform(prog, "uSizeMax"), float(std::max(view.width, view.height)));
+        gl.Uniform1i(gl.uniform(prog, "uPerspective"), persp ? 1 : 0);
+        const double depthScale = persp ? L.range + glm::length(w.lsBounds.max - w.lsBounds.min) +
+                                              glm::length(L.position - 0.5 * (w.lsBounds.min + w.lsBounds.max))
+                                        : (view.w1 - view.w0);
+        gl.Uniform1f(gl.uniform(prog, "uDepthEps"), float(1e-6 * depthScale + 1e-6));
+        gl.Uniform1f(gl.uniform(prog, "uBias"), float(biasEff));
+        gl.Uniform1i(gl.uniform(prog, "uAnyReceiver"), anyReceiver ? 1 : 0);
+        gl.Uniform1ui(gl.uniform(prog, "uRecordCap"), cap);
+        gl.Uniform1ui(gl.uniform(prog, "uView"), uint32_t(vi));
+        const GLint uMode = gl.uniform(prog, "uMode");
+        gl.Viewport(0, 0, view.width, view.height);
+        gl.Disable(GL_DEPTH_TEST);
+        gl.Disable(GL_STENCIL_TEST);
+        gl.Disable(GL_CULL_FACE);
+        gl.Enable(GL_BLEND);
+        gl.BlendFunc(GL_ONE, GL_ONE);
+
+        // 1. Occluders: D_occ = min over sheets of the sheet's bound, where it is valid.
+        gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->occ.fbo);
+        const float far[4] = {kBig, 0, 0, 0};
+        gl.ClearBufferfv(GL_COLOR, 0, far);
+        for (const auto& [first, count] : batchRange) {
+            gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->work.fbo);
+            const float none[4] = {-kBig, 0, 0, 0};
+            gl.ClearBufferfv(GL_COLOR, 0, none);
+            gl.BlendEquation(GL_MAX);
+            gl.UseProgram(prog);
+            gl.Uniform1i(uMode, 0);
+            gl.BindVertexArray(gl_->vao);
+            gl.DrawArrays(GL_POINTS, first, count);
+            gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->occ.fbo);
+            gl.BlendEquation(GL_MIN);
+            gl.UseProgram(gl_->resolve);
+            gl.ActiveTexture(GL_TEXTURE0);
+            gl.BindTexture(GL_TEXTURE_2D, gl_->work.colour[0]);
+            gl.BindVertexArray(gl_->emptyVao);
+            gl.DrawArrays(GL_TRIANGLES, 0, 3);
+        }
+        // 2. Receivers: R_max = max over receiver triangles of their farthest depth.
+        gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->recv.fbo);
+        const float nothing[4] = {-kBig, 0, 0, 0};
+        gl.ClearBufferfv(GL_COLOR, 0, nothing);
+        gl.BlendEquation(GL_MAX);
+        gl.UseProgram(prog);
+        gl.Uniform1i(uMode, 1);
+        gl.BindVertexArray(gl_->vao);
+        if (castFirst > recvFirst) gl.DrawArrays(GL_POINTS, recvFirst, castFirst - recvFirst);
+        // 3. Casters: count lit fragments and those with a receiver behind.
+        gl.Disable(GL_BLEND);
+        gl.BlendEquation(GL_FUNC_ADD);
+        gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->work.fbo);
+        gl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+        gl.Uniform1i(uMode, 2);
+        gl.ActiveTexture(GL_TEXTURE0);
+        gl.BindTexture(GL_TEXTURE_2D, gl_->occ.colour[0]);
+        gl.ActiveTexture(GL_TEXTURE1);
+        gl.BindTexture(GL_TEXTURE_2D, gl_->recv.colour[0]);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gl_->ssbo[0]);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gl_->ssbo[1]);
+        if (end > castFirst) gl.DrawArrays(GL_POINTS, castFirst, end - castFirst);
+        gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+        gl.MemoryBarrier(GL_ALL_BARRIER_BITS);
+        gl.ActiveTexture(GL_TEXTURE1);
+        gl.BindTexture(GL_TEXTURE_2D, 0);
+        gl.ActiveTexture(GL_TEXTURE0);
+        gl.BindTexture(GL_TEXTURE_2D, 0);
+        gl.BindVertexArray(0);
+        gl.UseProgram(0);
+        gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+        if (Status s = gl.check("the confirmation passes"); !s) return s;
+
+        if (options_.collectViewStats) {
+            ConfirmViewStats vs;
+            vs.light = l;
+            vs.view = int(vi);
+            vs.occluderSheets = int(sp.size());
+            vs.batches = int(batches.size());
+            for (float v : readFloatPixels(gl, gl_->occ, 0, 1, 0)) vs.occluderPixels += v < 1e29f;
+            for (float v : readFloatPixels(gl, gl_->recv, 0, 1, 0)) vs.receiverPixels += v > -1e29f;
+            viewStats_.push_back(vs);
+        }
+    }
+
+    // Read the counts and the pixels that passed.
+    std::vector<uint32_t> counts(2 * Q);
+    std::vector<uint32_t> records(Q * cap * 4);
+    gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, gl_->ssbo[0]);
+    gl.GetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(counts.size() * 4), counts.data());
+    gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, gl_->ssbo[1]);
+    gl.GetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(records.size() * 4), records.data());
+    gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    if (Status s = gl.check("reading the confirmation results"); !s) return s;
+
+    const std::string at = std::to_string(res) + " px" + (views.size() > 1 ? " per view, " + std::to_string(views.size()) + " views" : "");
+    for (size_t q = 0; q < Q; ++q) {
+        GroupPixels& gp = queries[q];
+        gp.litSamples = counts[2 * q];
+        gp.passedSamples = counts[2 * q + 1];
+        const uint32_t n = std::min(cap, uint32_t(gp.passedSamples));
+        std::map<std::tuple<int, int, int>, float> nearest;  // (view, px, py) -> nearest depth
+        for (uint32_t k = 0; k < n; ++k) {
+            const uint32_t* r = &records[(q * cap + k) * 4];
+            float z;
+            std::memcpy(&z, &r[2], 4);
+            auto key = std::make_tuple(int(r[3]), int(r[0]), int(r[1]));
+            auto it = nearest.find(key);
+            if (it == nearest.end() || z < it->second) nearest[key] = z;
+        }
+        for (const auto& [key, z] : nearest) {
+            const auto [v, px, py] = key;
+            if (v < 0 || size_t(v) >= views.size()) continue;
+            const LightView& view = views[size_t(v)];
+            PassedPixel p;
+            p.view = v, p.px = px, p.py = py;
+            const double cx = px + 0.5, cy = py + 0.5, depth = std::max(double(z), view.perspective ? nearZ : -1e300);
+            p.lsPoint = view.pointAt(cx, cy, depth);
+            p.lsDirection = view.rayDirection(cx, cy);
+            p.footprint = view.pixelSize(depth);
+            gp.pixels.push_back(p);
+        }
+        if (gp.passedSamples == 0) {
+            Decision& d = cv.at(gp.object, gp.group, l);
+            if (gp.litSamples == 0)
+                decide(d, Verdict::Culled, name(),
+                       "never lit: wherever the group is, an opaque sheet covering the whole pixel lies nearer the "
+                       "light (conservative rasterisation, " + at + ")");
+            else
+                decide(d, Verdict::Culled, name(),
+                       "nothing behind: no receiver deeper than the bias behind any pixel where the group may be lit "
+                       "(conservative rasterisation, " + at + ")");
+        }
+        groups_.push_back(std::move(gp));
+    }
+    return Status::ok();
+}
+
+}  // namespace shadowcull::gpu

@@ -1,0 +1,109 @@
+// gpu/: conservative confirmation (semantics.md, "The stages": gpu/). For the bits still
+// undecided after the geometry and ray stages, rasterise each light view so that zero
+// samples passed PROVES the bit is 0:
+//
+//  - occluders are under-estimated: a pixel counts as blocked only where one connected
+//    sheet of an object's opaque surface (front- or back-facing towards the light, joined
+//    across shared edges) covers the whole pixel, and then at the farthest depth that
+//    sheet can have over the pixel;
+//  - the group and the receivers are over-estimated: every pixel whose square touches a
+//    triangle (triangles enlarged by half a pixel diagonal, in a geometry shader) gets a
+//    fragment, at the nearest depth the group / the farthest depth the receivers can have
+//    over the pixel;
+//  - a pixel passes for group g when g may be lit there (its nearest depth is not behind
+//    the blocked depth) and a receiver may lie behind it by more than the bias.
+// If no pixel of any view passes, no ray from the light meets a lit point of g with a
+// receiver behind it: the bit is culled, with the reason (never lit, or nothing behind).
+// Otherwise it stays undecided, and the pixels that passed are kept (passedPixels()) so
+// the raycast stage can search there for a witness, more densely.
+//
+// What is left undecided on purpose (a false keep is fine, a false cull is a defect):
+//  - a point or spot light touching the geometry (no near plane below all geometry);
+//  - a point or spot light with filterRadius > 0: only "never lit" is proved (the lateral
+//    reach of the filter in a perspective view is not bounded here);
+//  - a window with skipped objects: only "never lit" is proved (a skipped object might
+//    have been a receiver);
+//  - a surface behind itself within one pixel: a sloped surface's farthest depth over a
+//    pixel lies behind its own nearest depth, so "nothing behind" needs a bias larger
+//    than a pixel's depth span (the geometry stage proves those exactly).
+// Slope bias only adds to the bias and is ignored (ignoring it admits more receivers);
+// range and cone are applied only to exclude receivers wholly out of range; the terrain
+// rule only excludes receiver triangles that lie wholly under the lowest terrain sample
+// around them by more than terrainTolerance.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/stage.h"
+
+namespace shadowcull::gpu {
+
+struct GpuConfirmOptions {
+    int resolution = 1024;         // pixels per side of each light view
+    int maxPixelsPerGroup = 256;   // passed pixels kept per (group, light)
+    bool collectViewStats = false; // read back coverage counts per view (tests, reports)
+};
+
+// A pixel where the group may be lit with a receiver behind: the light ray through the
+// pixel centre and the group's nearest possible depth there.
+struct PassedPixel {
+    glm::dvec3 lsPoint{0.0};      // window-local: pixel centre ray at the group's nearest depth
+    glm::dvec3 lsDirection{0.0};  // unit, the way light travels along that ray
+    double footprint = 0.0;       // pixel size in metres at that depth (search radius)
+    int view = 0;                 // index into the light's views (gpu/light_view.h)
+    int px = 0, py = 0;
+};
+
+// Outcome for one undecided bit the stage examined.
+struct GroupPixels {
+    size_t object = 0;  // index into ChunkVerdicts::objects
+    int group = 0;
+    int light = 0;
+    uint64_t litSamples = 0;     // fragments where the group may be lit
+    uint64_t passedSamples = 0;  // ... and a receiver may lie behind (0: culled)
+    std::vector<PassedPixel> pixels;  // up to maxPixelsPerGroup, deduplicated
+};
+
+// Coverage of one light view (with collectViewStats).
+struct ConfirmViewStats {
+    int light = 0;
+    int view = 0;
+    int occluderPixels = 0;  // pixels blocked whole by some occluder sheet
+    int receiverPixels = 0;  // pixels some receiver may reach
+    int occluderSheets = 0;  // connected opaque sheets drawn
+    int batches = 0;         // occluder passes (sheets with disjoint pixel rectangles share one)
+};
+
+class GpuConfirmStage : public Stage {
+public:
+    explicit GpuConfirmStage(GpuConfirmOptions options = {});
+    ~GpuConfirmStage() override;
+    GpuConfirmStage(const GpuConfirmStage&) = delete;
+    GpuConfirmStage& operator=(const GpuConfirmStage&) = delete;
+
+    const char* name() const override { return "gpu"; }
+    // Looks only at undecided bits; culls those it proves 0 (stage "gpu"), leaves the rest
+    // undecided. The OpenGL context is made on the first call that has work; no context
+    // is an ErrorKind::Internal error.
+    Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
+
+    // Every bit the last run examined, with the pixels that passed (for the raycast stage).
+    const std::vector<GroupPixels>& passedPixels() const { return groups_; }
+    // Per light view coverage of the last run (only with collectViewStats).
+    const std::vector<ConfirmViewStats>& viewStats() const { return viewStats_; }
+
+private:
+    struct Gl;
+    struct LightWork;
+    Status ensureGl();
+    Status runLight(const BakeWindow& w, ChunkVerdicts& cv, int light, LightWork& work);
+    GpuConfirmOptions options_;
+    std::unique_ptr<Gl> gl_;
+    std::vector<GroupPixels> groups_;
+    std::vector<ConfirmViewStats> viewStats_;
+};
+
+}  // namespace shadowcull::gpu

@@ -1,0 +1,200 @@
+#include "gpu/conservative.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+namespace shadowcull::gpu {
+
+namespace {
+
+bool lexLess(const glm::dvec3& a, const glm::dvec3& b) {
+    if (a.x != b.x) return a.x < b.x;
+    if (a.y != b.y) return a.y < b.y;
+    return a.z < b.z;
+}
+
+// Sutherland-Hodgman against f(v) >= 0; the crossing point is computed from the
+// lexicographically lesser endpoint, so two triangles sharing an edge get the same point.
+template <class F>
+int clipPolygon(const glm::dvec3* in, int n, glm::dvec3* out, F f) {
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        const glm::dvec3& c = in[i];
+        const glm::dvec3& d = in[(i + 1) % n];
+        const double fc = f(c), fd = f(d);
+        if (fc >= 0) out[m++] = c;
+        if ((fc >= 0) != (fd >= 0)) {
+            const bool cFirst = lexLess(c, d);
+            const glm::dvec3& p = cFirst ? c : d;
+            const glm::dvec3& q = cFirst ? d : c;
+            const double fp = cFirst ? fc : fd, fq = cFirst ? fd : fc;
+            out[m++] = p + (q - p) * (fp / (fp - fq));
+        }
+    }
+    return m;
+}
+
+double segmentDistance(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b) {
+    const glm::dvec3 ab = b - a;
+    const double l2 = glm::dot(ab, ab);
+    double t = l2 > 0 ? glm::dot(p - a, ab) / l2 : 0.0;
+    t = std::clamp(t, 0.0, 1.0);
+    return glm::length(p - (a + ab * t));
+}
+
+}  // namespace
+
+double pointTriangleDistance(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+    double d = std::min({segmentDistance(p, a, b), segmentDistance(p, b, c), segmentDistance(p, c, a)});
+    const glm::dvec3 n = glm::cross(b - a, c - a);
+    const double nn = glm::dot(n, n);
+    if (nn > 0) {
+        const double h = glm::dot(p - a, n);
+        const glm::dvec3 q = p - n * (h / nn);
+        if (glm::dot(glm::cross(b - a, q - a), n) >= 0 && glm::dot(glm::cross(c - b, q - b), n) >= 0 &&
+            glm::dot(glm::cross(a - c, q - c), n) >= 0)
+            d = std::min(d, std::abs(h) / std::sqrt(nn));
+    }
+    return d;
+}
+
+PieceBuilder::PieceBuilder(const LightView& view, double nearZ)
+    : view_(view), nearZ_(nearZ), guard_(2 * view.t) {}
+
+void PieceBuilder::triangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, int expectOrient,
+                            float dilatePx, uint32_t id, std::vector<RasterPiece>& out) const {
+    glm::dvec3 poly[16] = {view_.toView(a), view_.toView(b), view_.toView(c)};
+    int n = 3;
+    if (view_.perspective) {
+        glm::dvec3 tmp[16];
+        const double g = guard_, nz = nearZ_;
+        n = clipPolygon(poly, n, tmp, [&](const glm::dvec3& v) { return v.z - nz; });
+        n = clipPolygon(tmp, n, poly, [&](const glm::dvec3& v) { return g * v.z - v.x; });
+        n = clipPolygon(poly, n, tmp, [&](const glm::dvec3& v) { return g * v.z + v.x; });
+        n = clipPolygon(tmp, n, poly, [&](const glm::dvec3& v) { return g * v.z - v.y; });
+        n = clipPolygon(poly, n, tmp, [&](const glm::dvec3& v) { return g * v.z + v.y; });
+        std::copy(tmp, tmp + n, poly);
+    }
+    for (int k = 1; k + 1 < n; ++k) {
+        const glm::dvec3 tri[3] = {poly[0], poly[k], poly[k + 1]};
+        emit(tri, expectOrient, dilatePx, 0.0f, id, out);
+    }
+}
+
+void PieceBuilder::segment(const glm::dvec3& a, const glm::dvec3& b, std::vector<RasterPiece>& out) const {
+    glm::dvec3 p = view_.toView(a), q = view_.toView(b);
+    if (view_.perspective) {
+        if (lexLess(q, p)) std::swap(p, q);
+        const double g = guard_, nz = nearZ_;
+        auto clip = [&](auto f) {
+            const double fp = f(p), fq = f(q);
+            if (fp < 0 && fq < 0) return false;
+            if (fp < 0) p = p + (q - p) * (fp / (fp - fq));
+            else if (fq < 0) q = p + (q - p) * (fp / (fp - fq));
+            return true;
+        };
+        if (!clip([&](const glm::dvec3& v) { return v.z - nz; })) return;
+        if (!clip([&](const glm::dvec3& v) { return g * v.z - v.x; })) return;
+        if (!clip([&](const glm::dvec3& v) { return g * v.z + v.x; })) return;
+        if (!clip([&](const glm::dvec3& v) { return g * v.z - v.y; })) return;
+        if (!clip([&](const glm::dvec3& v) { return g * v.z + v.y; })) return;
+    }
+    const glm::dvec3 seg[3] = {p, q, q};
+    emit(seg, 0, 0.0f, 1.0f, 0, out);
+}
+
+void PieceBuilder::emit(const glm::dvec3* v, int expectOrient, float dilatePx, float kind, uint32_t id,
+                        std::vector<RasterPiece>& out) const {
+    glm::dvec2 P[3];
+    double s[3], z[3];
+    for (int k = 0; k < 3; ++k) {
+        P[k] = view_.viewToPixel(v[k]);
+        z[k] = v[k].z;
+        s[k] = view_.perspective ? 1.0 / v[k].z : v[k].z;
+    }
+    const double W = view_.width, H = view_.height;
+    // Cull what cannot reach a pixel of the view.
+    const double reach = 0.5 + double(dilatePx) + 1.0;
+    const double minX = std::min({P[0].x, P[1].x, P[2].x}), maxX = std::max({P[0].x, P[1].x, P[2].x});
+    const double minY = std::min({P[0].y, P[1].y, P[2].y}), maxY = std::max({P[0].y, P[1].y, P[2].y});
+    if (maxX < -reach || maxY < -reach || minX > W + reach || minY > H + reach) return;
+
+    RasterPiece r{};
+    r.x0 = float(P[0].x), r.y0 = float(P[0].y), r.x1 = float(P[1].x), r.y1 = float(P[1].y);
+    r.x2 = float(P[2].x), r.y2 = float(P[2].y);
+    r.s0 = float(s[0]);
+    r.zmin = float(std::min({z[0], z[1], z[2]}));
+    r.zmax = float(std::max({z[0], z[1], z[2]}));
+    r.dilate = dilatePx;
+    // Float coordinates are within ~6e-8 relative of these; the shader's arithmetic adds a
+    // few more ulps. The margin is far above both.
+    const double maxAbs = std::max({std::abs(minX), std::abs(maxX), std::abs(minY), std::abs(maxY)});
+    r.margin = float(1e-3 + 1e-6 * (maxAbs + std::max(W, H)));
+    r.kind = kind;
+    r.id = id;
+    const glm::dvec2 d1 = P[1] - P[0], d2 = P[2] - P[0], d3 = P[2] - P[1];
+    const double det = d1.x * d2.y - d1.y * d2.x;
+    const double maxLen2 = std::max({glm::dot(d1, d1), glm::dot(d2, d2), glm::dot(d3, d3)});
+    // The plane is used only where it is well conditioned (smallest angle not tiny);
+    // otherwise the shader keeps to the vertices' depth range, which is always sound.
+    if (kind == 0.0f && maxLen2 > 0 && std::abs(det) > 1e-6 * maxLen2) {
+        const double ds1 = s[1] - s[0], ds2 = s[2] - s[0];
+        r.a = float((ds1 * d2.y - ds2 * d1.y) / det);
+        r.b = float((d1.x * ds2 - d2.x * ds1) / det);
+        r.planeValid = 1.0f;
+        if (std::isfinite(r.a) && std::isfinite(r.b)) {
+            const int o = det > 0 ? 1 : -1;
+            r.orient = (expectOrient != 0 && o == expectOrient) ? float(o) : 0.0f;
+        } else {
+            r.a = r.b = 0.0f;
+            r.planeValid = 0.0f;
+        }
+    }
+    out.push_back(r);
+}
+
+MeshEdges::MeshEdges(const Mesh& mesh, const std::vector<uint32_t>& triangles) {
+    struct Directed {
+        glm::dvec3 lo, hi;
+        uint32_t vlo, vhi;
+        uint32_t triangle;
+        uint8_t k;
+        bool forward;
+    };
+    std::vector<Directed> all;
+    all.reserve(triangles.size() * 3);
+    for (uint32_t t : triangles) {
+        const auto& tri = mesh.triangles[t];
+        for (uint8_t k = 0; k < 3; ++k) {
+            const uint32_t i = tri[k], j = tri[(k + 1) % 3];
+            const glm::dvec3& p = mesh.positions[i];
+            const glm::dvec3& q = mesh.positions[j];
+            const bool fwd = lexLess(p, q);
+            all.push_back({fwd ? p : q, fwd ? q : p, fwd ? i : j, fwd ? j : i, t, k, fwd});
+        }
+    }
+    auto less = [](const Directed& a, const Directed& b) {
+        if (lexLess(a.lo, b.lo)) return true;
+        if (lexLess(b.lo, a.lo)) return false;
+        return lexLess(a.hi, b.hi);
+    };
+    std::sort(all.begin(), all.end(), less);
+    edgeOf.assign(mesh.triangles.size() * 3, UINT32_MAX);
+    for (size_t i = 0; i < all.size();) {
+        size_t j = i;
+        while (j < all.size() && !less(all[i], all[j]) && !less(all[j], all[i])) ++j;
+        const uint32_t e = uint32_t(ends.size());
+        ends.push_back({all[i].vlo, all[i].vhi});
+        start.push_back(uint32_t(uses.size()));
+        for (size_t k = i; k < j; ++k) {
+            uses.push_back({all[k].triangle, all[k].forward});
+            edgeOf[3 * size_t(all[k].triangle) + all[k].k] = e;
+        }
+        i = j;
+    }
+    start.push_back(uint32_t(uses.size()));
+}
+
+}  // namespace shadowcull::gpu

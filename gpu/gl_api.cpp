@@ -1,0 +1,153 @@
+#include "gpu/gl_api.h"
+
+namespace shadowcull::gpu {
+
+Status GlApi::load(const GlContext& context) {
+#define SHADOWCULL_GL_LOAD(type, name)                                                           \
+    name = reinterpret_cast<type>(context.getProcAddress("gl" #name));                          \
+    if (!name) return makeError(ErrorKind::Internal, "", 0, "OpenGL entry point gl" #name " not found");
+    SHADOWCULL_GL_FUNCTIONS(SHADOWCULL_GL_LOAD)
+#undef SHADOWCULL_GL_LOAD
+    return Status::ok();
+}
+
+Status GlApi::check(const char* what) const {
+    const GLenum e = GetError();
+    if (e == GL_NO_ERROR) return Status::ok();
+    while (GetError() != GL_NO_ERROR) {
+    }
+    return makeError(ErrorKind::Internal, "", 0, std::string("OpenGL error ") + std::to_string(e) + " in " + what);
+}
+
+namespace {
+
+Expected<GLuint> compile(const GlApi& gl, GLenum kind, const char* source) {
+    GLuint s = gl.CreateShader(kind);
+    gl.ShaderSource(s, 1, &source, nullptr);
+    gl.CompileShader(s);
+    GLint ok = 0;
+    gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char log[4096] = {0};
+        gl.GetShaderInfoLog(s, sizeof log - 1, nullptr, log);
+        gl.DeleteShader(s);
+        return makeError(ErrorKind::Internal, "", 0, std::string("GLSL compile error: ") + log);
+    }
+    return s;
+}
+
+}  // namespace
+
+Expected<GLuint> GlApi::program(const char* vertex, const char* geometry, const char* fragment) const {
+    std::vector<GLuint> shaders;
+    auto cleanup = [&] {
+        for (GLuint s : shaders) DeleteShader(s);
+    };
+    const std::pair<GLenum, const char*> stages[] = {
+        {GL_VERTEX_SHADER, vertex}, {GL_GEOMETRY_SHADER, geometry}, {GL_FRAGMENT_SHADER, fragment}};
+    for (const auto& [kind, src] : stages) {
+        if (!src) continue;
+        Expected<GLuint> s = compile(*this, kind, src);
+        if (!s) {
+            cleanup();
+            return s.error();
+        }
+        shaders.push_back(*s);
+    }
+    GLuint p = CreateProgram();
+    for (GLuint s : shaders) AttachShader(p, s);
+    LinkProgram(p);
+    cleanup();
+    GLint ok = 0;
+    GetProgramiv(p, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        char log[4096] = {0};
+        GetProgramInfoLog(p, sizeof log - 1, nullptr, log);
+        DeleteProgram(p);
+        return makeError(ErrorKind::Internal, "", 0, std::string("GLSL link error: ") + log);
+    }
+    return p;
+}
+
+Expected<RenderTarget> makeRenderTarget(const GlApi& gl, int width, int height, const std::vector<GLenum>& formats,
+                                        bool depthStencil) {
+    RenderTarget t;
+    t.width = width;
+    t.height = height;
+    gl.GenFramebuffers(1, &t.fbo);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, t.fbo);
+    std::vector<GLenum> drawBuffers;
+    for (size_t k = 0; k < formats.size(); ++k) {
+        GLuint tex = 0;
+        gl.GenTextures(1, &tex);
+        gl.BindTexture(GL_TEXTURE_2D, tex);
+        gl.TexStorage2D(GL_TEXTURE_2D, 1, formats[k], width, height);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        gl.FramebufferTexture2D(GL_FRAMEBUFFER, GLenum(GL_COLOR_ATTACHMENT0 + k), GL_TEXTURE_2D, tex, 0);
+        t.colour.push_back(tex);
+    }
+    if (depthStencil) {
+        gl.GenRenderbuffers(1, &t.depthStencil);
+        gl.BindRenderbuffer(GL_RENDERBUFFER, t.depthStencil);
+        gl.RenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH32F_STENCIL8, width, height);
+        gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, t.depthStencil);
+    }
+    const GLenum status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
+    if (status != GL_FRAMEBUFFER_COMPLETE) {
+        destroyRenderTarget(gl, t);
+        return makeError(ErrorKind::Internal, "", 0,
+                         "OpenGL framebuffer " + std::to_string(width) + "x" + std::to_string(height) +
+                             " incomplete (status " + std::to_string(status) + ")");
+    }
+    if (Status s = gl.check("creating a render target"); !s) {
+        destroyRenderTarget(gl, t);
+        return s.error();
+    }
+    return t;
+}
+
+void destroyRenderTarget(const GlApi& gl, RenderTarget& t) {
+    if (!t.colour.empty()) gl.DeleteTextures(GLsizei(t.colour.size()), t.colour.data());
+    if (t.depthStencil) gl.DeleteRenderbuffers(1, &t.depthStencil);
+    if (t.fbo) gl.DeleteFramebuffers(1, &t.fbo);
+    t = RenderTarget{};
+}
+
+std::vector<float> readFloatPixels(const GlApi& gl, const RenderTarget& t, int attachment, int channels, int channel) {
+    std::vector<float> all(size_t(t.width) * size_t(t.height) * size_t(channels));
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, t.fbo);
+    gl.ReadBuffer(GLenum(GL_COLOR_ATTACHMENT0 + attachment));
+    gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+    gl.ReadPixels(0, 0, t.width, t.height, channels == 1 ? GL_RED : channels == 2 ? GL_RG : GL_RGBA, GL_FLOAT,
+                  all.data());
+    gl.BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+    std::vector<float> out(size_t(t.width) * size_t(t.height));
+    for (size_t k = 0; k < out.size(); ++k) out[k] = all[k * size_t(channels) + size_t(channel)];
+    return out;
+}
+
+}  // namespace shadowcull::gpu
+
+namespace shadowcull::gpu {
+
+Status GlSession::makeCurrent() const {
+    if (!context || !context->makeCurrent())
+        return makeError(ErrorKind::Internal, "", 0, "cannot make the OpenGL context current");
+    return Status::ok();
+}
+
+Expected<std::unique_ptr<GlSession>> openGlSession() {
+    Expected<std::unique_ptr<GlContext>> ctx = createOffscreenContext(16, 16);
+    if (!ctx) return ctx.error();
+    auto session = std::make_unique<GlSession>();
+    session->context = std::move(*ctx);
+    if (Status s = session->makeCurrent(); !s) return s.error();
+    if (Status s = session->gl.load(*session->context); !s) return s.error();
+    return session;
+}
+
+}  // namespace shadowcull::gpu
