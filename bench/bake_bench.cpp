@@ -4,7 +4,8 @@
 // vs a bare Embree occlusion loop over the same scene, analytic vs GPU). See bench/README.md.
 //
 //   bake_bench [--sizes S,M,L] [--work DIR] [--threads N] [--max-chunks N]
-//              [--baseline-rays N] [--no-baseline] [--no-fork] [--gen-only] [--json FILE]
+//              [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]
+//              [--cross-check] [--gen-only] [--json FILE]
 //
 // Each world is generated once into the work directory, keyed by a hash of its spec and
 // the generator version, and reused by later runs. Generation, each bake and each Embree
@@ -41,7 +42,8 @@
 
 namespace shadowcull::bench {
 // bench/embree_baseline.cpp (no header of its own: only this program calls it).
-nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int centreZ, uint64_t rays, int threads);
+nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int centreZ, uint64_t rays, int threads,
+                                 const std::vector<double>& lightWeights);
 }  // namespace shadowcull::bench
 
 using namespace shadowcull;
@@ -67,6 +69,8 @@ struct Options {
     bool baseline = true;
     bool fork = true;
     bool genOnly = false;
+    bool raycast = true, geometry = true;  // stages to run (--no-raycast / --no-geometry: profiling)
+    bool crossCheck = false;               // geometry also examines witnessed bits; fails on a contradiction
     std::string jsonOut;         // all figures as JSON
 };
 
@@ -74,7 +78,8 @@ struct Options {
     std::fprintf(stderr,
                  "bake_bench: %s\n"
                  "usage: bake_bench [--sizes S,M,L] [--work DIR] [--threads N] [--max-chunks N]\n"
-                 "                  [--baseline-rays N] [--no-baseline] [--no-fork] [--gen-only] [--json FILE]\n",
+                 "                  [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]\n"
+                 "                  [--cross-check] [--gen-only] [--json FILE]\n",
                  why);
     std::exit(2);
 }
@@ -113,6 +118,12 @@ Options parseArgs(int argc, char** argv) {
             o.baseline = false;
         } else if (a == "--no-fork") {
             o.fork = false;
+        } else if (a == "--no-raycast") {
+            o.raycast = false;
+        } else if (a == "--no-geometry") {
+            o.geometry = false;
+        } else if (a == "--cross-check") {
+            o.crossCheck = true;
         } else if (a == "--gen-only") {
             o.genOnly = true;
         } else if (a == "--json") {
@@ -297,6 +308,9 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     opt.write = false;
     opt.threads = o.threads;
     opt.raycast.threads = o.threads;
+    opt.useRaycast = o.raycast;
+    opt.useGeometry = o.geometry;
+    opt.geometry.crossCheckWitnesses = o.crossCheck;
     const std::vector<std::pair<int, int>> all = gridChunks(spec);
     if (o.maxChunks > 0 && size_t(o.maxChunks) < all.size()) {
         // Evenly spread over the grid (every k-th chunk in row-major order).
@@ -305,12 +319,13 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
             opt.chunkNames.push_back(testing::chunkName(c.first, c.second));
         }
     }
-    long rssFirstChunk = 0;
+    long rssFirstChunk = 0, rssLastChunk = 0;
     auto last = std::chrono::steady_clock::now();
     const auto t0 = last;
     const long rssStart = procStatusKiB("VmRSS:");
     auto progress = [&](size_t done, size_t total) {
         if (done == 1) rssFirstChunk = procStatusKiB("VmRSS:");
+        if (done == total) rssLastChunk = procStatusKiB("VmRSS:");
         if (since(last) < 15.0 && done != total) return;
         last = std::chrono::steady_clock::now();
         const double el = since(t0);
@@ -332,6 +347,7 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     j["threads"] = o.threads > 0 ? o.threads : int(std::thread::hardware_concurrency());
     j["rssStartKiB"] = rssStart;
     j["rssAfterFirstChunkKiB"] = rssFirstChunk;
+    j["rssAfterLastChunkKiB"] = rssLastChunk;
     j["vmHwmKiB"] = procStatusKiB("VmHWM:");
     json stages = json::array();
     for (const cli::StageTiming& st : r->stages) {
@@ -443,13 +459,15 @@ struct WorldRun {
         if (!s || (*s)["seconds"].get<double>() <= 0) return 0;
         return (*s)["raysCast"].get<double>() / (*s)["seconds"].get<double>();
     }
-    // Peak RSS projected to the whole world for a partial bake: what the first chunk needed
-    // plus the growth per chunk after it (verdict tables are kept for every chunk).
+    // Peak RSS projected to the whole world for a partial bake: the measured peak plus the
+    // steady growth per chunk (resident memory after the first and after the last chunk:
+    // the verdict tables of every baked chunk are kept) times the chunks not baked.
     double projectedPeakKiB() const {
         const double first = bake["rssAfterFirstChunkKiB"].get<double>();
+        const double last = bake.value("rssAfterLastChunkKiB", 0.0);
         const double n = bake["chunksBaked"].get<double>(), total = bake["chunksTotal"].get<double>();
-        if (!partial() || n < 2 || first <= 0) return double(bakePeakKiB);
-        return std::max(double(bakePeakKiB), first + (double(bakePeakKiB) - first) / (n - 1) * (total - 1));
+        if (!partial() || n < 2 || first <= 0 || last <= 0) return double(bakePeakKiB);
+        return double(bakePeakKiB) + std::max(0.0, last - first) / (n - 1) * (total - n);
     }
 };
 
@@ -602,8 +620,17 @@ int main(int argc, char** argv) {
             const fs::path bout = o.work / ("baseline-" + w.spec.name + ".json");
             fs::remove(bout, ec);
             std::fprintf(stderr, "[%s] Embree baseline, %s rays per loop ...\n", w.spec.name.c_str(), count(n).c_str());
+            // Per light, the bits the raycast stage examined (kept + left undecided + culled after it).
+            std::vector<double> weights;
+            for (const json& l : w.bake["lights"]) {
+                double x = 0;
+                for (auto it = l["counts"].begin(); it != l["counts"].end(); ++it)
+                    if (it.key() == "kept" || it.key() == "undecided" || it.key() == "culled:geometry" || it.key() == "culled:gpu")
+                        x += it.value().get<double>();
+                weights.push_back(x);
+            }
             const Job bj = runJob(o.fork, [&] {
-                const json j = runEmbreeBaseline(w.dir.string(), 0, 0, n, o.threads);
+                const json j = runEmbreeBaseline(w.dir.string(), 0, 0, n, o.threads, weights);
                 if (j.contains("error")) std::fprintf(stderr, "bake_bench: baseline: %s\n", j["error"].get<std::string>().c_str());
                 return writeJson(bout, j) && !j.contains("error") ? 0 : 1;
             });
@@ -618,13 +645,16 @@ int main(int argc, char** argv) {
 
     // Embree baseline.
     std::printf("\n## Raycast stage vs a bare Embree loop over the same scene\n\n");
-    std::printf("Scene: the window of chunk (0,0) (it and its 8 neighbours), built as the stage builds it. Rays: the "
-                "stage's first rays for that window (every centre group x every reaching light x every sample point, "
-                "from the light), cycled; the loops trace as many as the stage made Embree calls (capped). The stage's "
-                "rays/s is its Embree calls (p ray + q steps) over its whole time, scene builds and sampling included.\n\n");
-    std::printf("| world | window objects / triangles | rays per loop | bare rtcOccluded1 rays/s | bare rtcOccluded16 rays/s | "
-                "bare closest-hit rtcIntersect1 + alpha filter rays/s | bare all-hit rtcIntersect1 rays/s (hits per ray) | "
-                "pipeline raycast stage rays/s | pipeline / occluded1 | pipeline / occluded16 | pipeline / closest-hit |\n");
+    std::printf("Scene: the window of chunk (0,0) (it and its 8 neighbours), built as the stage builds it. Rays: from "
+                "each light through the sample points of every centre group it reaches, each light's share weighted by the "
+                "bits the stage examined for it; the occlusion loops trace the segment light -> sample point (the shadow "
+                "ray of \"is p lit\"), the closest-hit and all-hit loops the stage's whole ray. Each loop traces as many "
+                "rays as the stage made Embree calls (capped), median of 3. The stage's rays/s is its Embree calls "
+                "(p ray + q steps) over its whole time, scene builds and sampling included.\n\n");
+    std::printf("| world | window objects / triangles | rays per loop | bare rtcOccluded1 rays/s (occluded) | "
+                "bare rtcOccluded16 rays/s | bare closest-hit rtcIntersect1 + alpha filter rays/s | "
+                "bare all-hit rtcIntersect1 rays/s (hits per ray) | pipeline raycast stage rays/s | pipeline / occluded1 | "
+                "pipeline / occluded16 | pipeline / closest-hit |\n");
     std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (const WorldRun& w : runs) {
         if (!w.baked) continue;
@@ -637,10 +667,11 @@ int main(int argc, char** argv) {
         const double o1 = b["occluded1"]["raysPerSecond"].get<double>(), o16 = b["occluded16"]["raysPerSecond"].get<double>();
         const double ch = b["closest1"]["raysPerSecond"].get<double>();
         const double ah = b["allhits1"]["raysPerSecond"].get<double>();
-        std::printf("| %s | %s / %s | %s | %s | %s | %s | %s (%.1f) | %s | **%.3f** | **%.3f** | %.3f |\n", w.spec.name.c_str(),
-                    count(b["window"]["objects"].get<uint64_t>()).c_str(), count(b["window"]["triangles"].get<uint64_t>()).c_str(),
-                    count(b["rays"].get<uint64_t>()).c_str(), rate(o1).c_str(), rate(o16).c_str(), rate(ch).c_str(),
-                    rate(ah).c_str(), b["allhits1"]["meanHitsVisited"].get<double>(), rate(pipe).c_str(), pipe / o1, pipe / o16,
+        std::printf("| %s | %s / %s | %s | %s (%.0f%%) | %s | %s | %s (%.1f) | %s | **%.3f** | **%.3f** | %.3f |\n",
+                    w.spec.name.c_str(), count(b["window"]["objects"].get<uint64_t>()).c_str(),
+                    count(b["window"]["triangles"].get<uint64_t>()).c_str(), count(b["rays"].get<uint64_t>()).c_str(),
+                    rate(o1).c_str(), 100 * b["occluded1"]["metric"].get<double>(), rate(o16).c_str(), rate(ch).c_str(),
+                    rate(ah).c_str(), b["allhits1"]["metric"].get<double>(), rate(pipe).c_str(), pipe / o1, pipe / o16,
                     pipe / ch);
     }
 
@@ -680,9 +711,14 @@ int main(int argc, char** argv) {
     if (M && L) {
         const double ratio = L->perChunk() / M->perChunk();
         const bool projected = L->partial() || M->partial();
-        std::printf("| L time per chunk within %.0f%% of M's (L total ~ 9x M) | %.3f (L %s s/chunk, M %s s/chunk)%s | %s |\n",
+        auto examinedPerChunk = [](const WorldRun& w) {
+            const json* s = w.stage("raycast");
+            return s ? (*s)["bitsExamined"].get<double>() / w.bake["chunksBaked"].get<double>() : 0.0;
+        };
+        std::printf("| L time per chunk within %.0f%% of M's (L total ~ 9x M) | %.3f (L %s s/chunk, M %s s/chunk; bits past "
+                    "the reach stage per chunk: L %.0f, M %.0f)%s | %s |\n",
                     kTargetLinearity * 100, ratio, seconds(L->perChunk()).c_str(), seconds(M->perChunk()).c_str(),
-                    projected ? ", from a partial bake" : "",
+                    examinedPerChunk(*L), examinedPerChunk(*M), projected ? ", from a partial bake" : "",
                     std::abs(ratio - 1) <= kTargetLinearity ? (projected ? "met (projected)" : "met")
                                                             : (projected ? "NOT met (projected)" : "NOT met"));
     } else {

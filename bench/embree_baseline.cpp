@@ -8,10 +8,14 @@
 // every light that reaches it, rays from the light through the group's sample points
 // (raycast::sampleGroup, 256 area + up to 1024 feature samples); directional rays start
 // before the loaded bounds and cross the whole window, like the stage's. The loops cycle
-// through that list until `rays` rays have been traced, in parallel over TBB:
+// through that list (each light's share weighted like the stage's examined bits per light)
+// until `rays` rays have been traced, after an untimed warm-up, in parallel over TBB:
 //
-//  - occluded1:  rtcOccluded1, one ray at a time (any hit ends the ray)
-//  - occluded16: rtcOccluded16, packets of 16 consecutive rays (same group and light)
+//  - occluded1:  rtcOccluded1, one ray at a time, on the segment light -> sample point
+//                (the shadow ray deciding whether p is lit; any hit ends it)
+//  - occluded16: rtcOccluded16, packets of 16 consecutive segments (same group and light)
+//  - occluded1Full: rtcOccluded1 on the stage's whole ray (JSON only: it always stops on
+//                the sample's own surface at the latest, so it measures little)
 //  - closest1:   rtcIntersect1 with the stage's alpha-skip context filter (hits on
 //                alpha-tested groups other than the ray's target group are rejected): the
 //                stage's first ray per sample (finding p), without any witness logic.
@@ -49,6 +53,7 @@ namespace {
 
 struct Ray {
     float org[3], dir[3], tfar;
+    float tshadow;           // just short of the sample point: the light -> p segment
     uint32_t object, group;  // the group the ray aims at (window object index, group)
 };
 
@@ -150,8 +155,10 @@ double secondsSince(std::chrono::steady_clock::time_point t) {
 }  // namespace
 
 // See the file comment. `centre`: the chunk whose window is traced (with its neighbours as
-// in a bake); `rays`: how many rays each loop traces (0: the list once); `threads`: 0 = all.
-nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int centreZ, uint64_t rays, int threads) {
+// in a bake); `rays`: how many rays each loop traces (0: the list once); `threads`: 0 = all;
+// `lightWeights`: per light, its share of the rays (empty: every ray of every light alike).
+nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int centreZ, uint64_t rays, int threads,
+                                 const std::vector<double>& lightWeights) {
     using nlohmann::json;
     json out;
     std::unique_ptr<tbb::global_control> limit;
@@ -210,7 +217,7 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
     // The stage's rays: per centre group and reaching light, through its sample points.
     const double diag = glm::length(w.lsBounds.max - w.lsBounds.min);
     const double backDist = diag + 1.0;
-    std::vector<Ray> list;
+    std::vector<std::vector<Ray>> perLight(w.lsLights.size());
     uint64_t centreGroups = 0;
     for (uint32_t oi = 0; oi < w.objects.size(); ++oi) {
         const WindowObject& o = w.objects[oi];
@@ -219,15 +226,17 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
             const std::vector<glm::dvec3> samples = raycast::sampleGroup(o, g, 256, 1024);
             if (samples.empty()) continue;
             ++centreGroups;
-            for (const Light& L : w.lsLights) {
+            for (size_t l = 0; l < w.lsLights.size(); ++l) {
+                const Light& L = w.lsLights[l];
                 for (const glm::dvec3& s : samples) {
                     Ray r;
                     glm::dvec3 origin, dir;
-                    double tfar;
+                    double tfar, tshadow;
                     if (L.type == LightType::Directional) {
                         dir = L.direction;
                         origin = s - dir * backDist;
                         tfar = 2 * backDist;
+                        tshadow = backDist - 1e-3;
                     } else {
                         const glm::dvec3 v = s - L.position;
                         const double d = glm::length(v);
@@ -238,21 +247,45 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
                         origin = L.position;
                         dir = v / d;
                         tfar = L.range;
+                        tshadow = d - 1e-3;
                     }
                     for (int c = 0; c < 3; ++c) {
                         r.org[c] = float(origin[c]);
                         r.dir[c] = float(dir[c]);
                     }
                     r.tfar = float(tfar);
+                    r.tshadow = float(tshadow);
                     r.object = oi;
                     r.group = g;
-                    list.push_back(r);
+                    perLight[l].push_back(r);
                 }
             }
         }
     }
+    // The mix: each light's share of the list follows `lightWeights` (the bits the stage
+    // examined per light in the whole bake), so that the loop traces directional and local
+    // rays in the stage's proportions; within a light, groups and samples in the stage's
+    // order (consecutive rays share a group and a light, as in the stage).
+    std::vector<double> weight(w.lsLights.size(), 1.0);
+    if (lightWeights.size() == weight.size()) weight = lightWeights;
+    double sum = 0;
+    uint64_t available = 0;
+    for (size_t l = 0; l < weight.size(); ++l) {
+        if (perLight[l].empty()) weight[l] = 0;
+        sum += weight[l];
+        available += perLight[l].size();
+    }
+    const uint64_t listSize = std::min<uint64_t>(available, 2000000);
+    std::vector<Ray> list;
+    json mix = json::object();
+    for (size_t l = 0; l < weight.size() && sum > 0; ++l) {
+        const uint64_t take = uint64_t(std::llround(double(listSize) * weight[l] / sum));
+        for (uint64_t k = 0; k < take; ++k) list.push_back(perLight[l][size_t(k % perLight[l].size())]);
+        if (take) mix[w.lsLights[l].name] = take;
+    }
     out["window"] = {{"objects", w.objects.size()}, {"triangles", windowTriangles}, {"uniqueMeshes", prototypes.size()},
-                     {"centreGroups", centreGroups}, {"rayList", list.size()}, {"buildSeconds", buildSeconds}};
+                     {"centreGroups", centreGroups}, {"raysAvailable", available}, {"rayList", list.size()},
+                     {"mix", mix}, {"buildSeconds", buildSeconds}};
     if (list.empty()) {
         out["error"] = "no rays in the window";
         return out;
@@ -262,129 +295,135 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
     const size_t L = list.size();
     auto rayAt = [&](uint64_t i) -> const Ray& { return list[size_t(i % L)]; };
 
-    // rtcOccluded1.
-    {
-        std::atomic<uint64_t> occluded{0};
-        const auto t = std::chrono::steady_clock::now();
-        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 4096), [&](const tbb::blocked_range<uint64_t>& r) {
-            enableFlushToZero();
-            RTCIntersectContext ctx;
-            rtcInitIntersectContext(&ctx);
-            uint64_t local = 0;
-            for (uint64_t i = r.begin(); i < r.end(); ++i) {
+    // Each loop runs kRepeats times over the same n rays; the median time counts (other
+    // load on a shared machine skews single runs). The first, untimed pass warms up.
+    constexpr int kRepeats = 3;
+    auto measure = [&](const char* name, uint64_t grain, auto body) {
+        std::vector<double> times;
+        double metric = 0;
+        for (int rep = -1; rep < kRepeats; ++rep) {
+            std::atomic<uint64_t> total{0};
+            const uint64_t count = rep < 0 ? std::min<uint64_t>(n, 100000) : n;
+            const auto t = std::chrono::steady_clock::now();
+            tbb::parallel_for(tbb::blocked_range<uint64_t>(0, count, grain), [&](const tbb::blocked_range<uint64_t>& r) {
+                enableFlushToZero();
+                total += body(r.begin(), r.end());
+            });
+            if (rep >= 0) times.push_back(secondsSince(t));
+            metric = double(total) / double(count);
+        }
+        std::sort(times.begin(), times.end());
+        const double median = times[times.size() / 2];
+        out[name] = {{"seconds", median}, {"raysPerSecond", double(n) / median}, {"metric", metric},
+                     {"allSeconds", times}};
+    };
+    auto ray1 = [](const Ray& s, float tfar) {
+        RTCRay ray{};
+        ray.org_x = s.org[0], ray.org_y = s.org[1], ray.org_z = s.org[2];
+        ray.dir_x = s.dir[0], ray.dir_y = s.dir[1], ray.dir_z = s.dir[2];
+        ray.tnear = 0.0f;
+        ray.tfar = tfar;
+        ray.mask = 0xffffffffu;
+        return ray;
+    };
+
+    // rtcOccluded1 on the segment light -> sample point (the shadow ray of "is p lit");
+    // metric: the fraction occluded (alpha-tested cards count as opaque here).
+    measure("occluded1", 4096, [&](uint64_t b, uint64_t e) {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        uint64_t occluded = 0;
+        for (uint64_t i = b; i < e; ++i) {
+            RTCRay ray = ray1(rayAt(i), rayAt(i).tshadow);
+            rtcOccluded1(scene, &ctx, &ray);
+            occluded += ray.tfar < 0;  // Embree sets tfar to -inf when occluded
+        }
+        return occluded;
+    });
+    // rtcOccluded1 on the whole ray (the stage's tfar): always ends on the sample's own
+    // surface at the latest, so it is cheap; for reference only.
+    measure("occluded1Full", 4096, [&](uint64_t b, uint64_t e) {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        uint64_t occluded = 0;
+        for (uint64_t i = b; i < e; ++i) {
+            RTCRay ray = ray1(rayAt(i), rayAt(i).tfar);
+            rtcOccluded1(scene, &ctx, &ray);
+            occluded += ray.tfar < 0;
+        }
+        return occluded;
+    });
+    // rtcOccluded16: packets of 16 consecutive segments (same group and light).
+    measure("occluded16", 256, [&](uint64_t b, uint64_t e) {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        alignas(64) RTCRay16 p;
+        alignas(64) int valid[16];
+        uint64_t occluded = 0;
+        for (uint64_t q0 = b; q0 < e; q0 += 16) {
+            for (int k = 0; k < 16; ++k) {
+                const uint64_t i = q0 + uint64_t(k);
+                valid[k] = i < e ? -1 : 0;
                 const Ray& s = rayAt(i);
-                RTCRay ray{};
-                ray.org_x = s.org[0], ray.org_y = s.org[1], ray.org_z = s.org[2];
-                ray.dir_x = s.dir[0], ray.dir_y = s.dir[1], ray.dir_z = s.dir[2];
-                ray.tnear = 0.0f;
-                ray.tfar = s.tfar;
-                ray.mask = 0xffffffffu;
-                rtcOccluded1(scene, &ctx, &ray);
-                local += ray.tfar < 0;  // Embree sets tfar to -inf when occluded
+                p.org_x[k] = s.org[0], p.org_y[k] = s.org[1], p.org_z[k] = s.org[2];
+                p.dir_x[k] = s.dir[0], p.dir_y[k] = s.dir[1], p.dir_z[k] = s.dir[2];
+                p.tnear[k] = 0.0f;
+                p.tfar[k] = s.tshadow;
+                p.mask[k] = 0xffffffffu;
+                p.time[k] = 0.0f;
+                p.id[k] = unsigned(k);
+                p.flags[k] = 0;
             }
-            occluded += local;
-        });
-        const double s = secondsSince(t);
-        out["occluded1"] = {{"seconds", s}, {"raysPerSecond", double(n) / s}, {"occludedFraction", double(occluded) / double(n)}};
-    }
-    // rtcOccluded16: packets of 16 consecutive rays of the list.
-    {
-        const uint64_t packets = (n + 15) / 16;
-        const auto t = std::chrono::steady_clock::now();
-        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, packets, 256), [&](const tbb::blocked_range<uint64_t>& r) {
-            enableFlushToZero();
-            RTCIntersectContext ctx;
-            rtcInitIntersectContext(&ctx);
-            alignas(64) RTCRay16 p;
-            alignas(64) int valid[16];
-            for (uint64_t q = r.begin(); q < r.end(); ++q) {
-                for (int k = 0; k < 16; ++k) {
-                    const uint64_t i = q * 16 + uint64_t(k);
-                    valid[k] = i < n ? -1 : 0;
-                    const Ray& s = rayAt(i);
-                    p.org_x[k] = s.org[0], p.org_y[k] = s.org[1], p.org_z[k] = s.org[2];
-                    p.dir_x[k] = s.dir[0], p.dir_y[k] = s.dir[1], p.dir_z[k] = s.dir[2];
-                    p.tnear[k] = 0.0f;
-                    p.tfar[k] = s.tfar;
-                    p.mask[k] = 0xffffffffu;
-                    p.time[k] = 0.0f;
-                    p.id[k] = unsigned(k);
-                    p.flags[k] = 0;
-                }
-                rtcOccluded16(valid, scene, &ctx, &p);
+            rtcOccluded16(valid, scene, &ctx, &p);
+            for (int k = 0; k < 16; ++k) occluded += valid[k] && p.tfar[k] < 0;
+        }
+        return occluded;
+    });
+    // rtcIntersect1 with the stage's alpha-skip filter over the whole ray (the stage's ray
+    // for p); metric: the fraction whose closest opaque hit is on the target object.
+    measure("closest1", 4096, [&](uint64_t b, uint64_t e) {
+        uint64_t onTarget = 0;
+        for (uint64_t i = b; i < e; ++i) {
+            const Ray& s = rayAt(i);
+            AlphaSkip skip;
+            rtcInitIntersectContext(&skip.ctx);
+            if (w.hasAlphaTested) {
+                skip.ctx.filter = &skipAlphaTested;
+                skip.window = &w;
+                skip.object = s.object;
+                skip.group = s.group;
             }
-        });
-        const double s = secondsSince(t);
-        out["occluded16"] = {{"seconds", s}, {"raysPerSecond", double(n) / s}};
-    }
-    // rtcIntersect1 with the stage's alpha-skip filter (closest opaque hit).
-    {
-        std::atomic<uint64_t> onTarget{0};
-        const auto t = std::chrono::steady_clock::now();
-        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 4096), [&](const tbb::blocked_range<uint64_t>& r) {
-            enableFlushToZero();
-            uint64_t local = 0;
-            for (uint64_t i = r.begin(); i < r.end(); ++i) {
-                const Ray& s = rayAt(i);
-                AlphaSkip skip;
-                rtcInitIntersectContext(&skip.ctx);
-                if (w.hasAlphaTested) {
-                    skip.ctx.filter = &skipAlphaTested;
-                    skip.window = &w;
-                    skip.object = s.object;
-                    skip.group = s.group;
-                }
-                RTCRayHit rh{};
-                rh.ray.org_x = s.org[0], rh.ray.org_y = s.org[1], rh.ray.org_z = s.org[2];
-                rh.ray.dir_x = s.dir[0], rh.ray.dir_y = s.dir[1], rh.ray.dir_z = s.dir[2];
-                rh.ray.tnear = 0.0f;
-                rh.ray.tfar = s.tfar;
-                rh.ray.mask = 0xffffffffu;
-                rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-                rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-                rtcIntersect1(scene, &skip.ctx, &rh);
-                const unsigned object = rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID ? rh.hit.instID[0] : rh.hit.geomID;
-                local += object == s.object;
-            }
-            onTarget += local;
-        });
-        const double s = secondsSince(t);
-        out["closest1"] = {{"seconds", s}, {"raysPerSecond", double(n) / s}, {"firstHitOnTarget", double(onTarget) / double(n)}};
-    }
-    // rtcIntersect1 with an all-hit filter (48 nearest hits): the stage's earlier method.
-    {
-        std::atomic<uint64_t> hits{0}, visited{0};
-        const auto t = std::chrono::steady_clock::now();
-        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 1024), [&](const tbb::blocked_range<uint64_t>& r) {
-            enableFlushToZero();
-            std::vector<Hit> buffer(48);
-            uint64_t local = 0, localVisited = 0;
-            for (uint64_t i = r.begin(); i < r.end(); ++i) {
-                const Ray& s = rayAt(i);
-                HitCollector hc;
-                rtcInitIntersectContext(&hc.ctx);
-                hc.ctx.filter = &collectAllHits;
-                hc.hits = buffer.data();
-                hc.capacity = 48;
-                RTCRayHit rh{};
-                rh.ray.org_x = s.org[0], rh.ray.org_y = s.org[1], rh.ray.org_z = s.org[2];
-                rh.ray.dir_x = s.dir[0], rh.ray.dir_y = s.dir[1], rh.ray.dir_z = s.dir[2];
-                rh.ray.tnear = 0.0f;
-                rh.ray.tfar = s.tfar;
-                rh.ray.mask = 0xffffffffu;
-                rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-                rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-                rtcIntersect1(scene, &hc.ctx, &rh);
-                local += uint64_t(hc.count);
-                localVisited += hc.visited;
-            }
-            hits += local;
-            visited += localVisited;
-        });
-        const double s = secondsSince(t);
-        out["allhits1"] = {{"seconds", s}, {"raysPerSecond", double(n) / s}, {"meanHitsKept", double(hits) / double(n)},
-                           {"meanHitsVisited", double(visited) / double(n)}};
-    }
+            RTCRayHit rh{};
+            rh.ray = ray1(s, s.tfar);
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(scene, &skip.ctx, &rh);
+            const unsigned object = rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID ? rh.hit.instID[0] : rh.hit.geomID;
+            onTarget += object == s.object;
+        }
+        return onTarget;
+    });
+    // rtcIntersect1 with an all-hit filter (the nearest 48 hits kept, every hit rejected so
+    // traversal visits all): the stage's method before commit 7d9003e; metric: hits per ray.
+    measure("allhits1", 1024, [&](uint64_t b, uint64_t e) {
+        std::vector<Hit> buffer(48);
+        uint64_t visited = 0;
+        for (uint64_t i = b; i < e; ++i) {
+            const Ray& s = rayAt(i);
+            HitCollector hc;
+            rtcInitIntersectContext(&hc.ctx);
+            hc.ctx.filter = &collectAllHits;
+            hc.hits = buffer.data();
+            hc.capacity = 48;
+            RTCRayHit rh{};
+            rh.ray = ray1(s, s.tfar);
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(scene, &hc.ctx, &rh);
+            visited += hc.visited;
+        }
+        return visited;
+    });
     rtcReleaseScene(scene);
     for (auto& [mesh, proto] : prototypes) rtcReleaseScene(proto);
     rtcReleaseDevice(device);

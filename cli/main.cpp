@@ -56,6 +56,7 @@ int runBakeCommand(const BakeOptions& opt, const std::string& resultsPath, bool 
         return exitCodeFor(r.error().kind);
     }
     for (const Diagnostic& d : r->diagnostics) std::fprintf(stderr, "shadowcull: warning: %s\n", d.what().c_str());
+    for (const std::string& n : r->notes) std::fprintf(stderr, "shadowcull: note: %s\n", n.c_str());
     if (!resultsPath.empty()) {
         std::ofstream out(resultsPath, std::ios::binary);
         out << resultsJson(*r).dump(1) << "\n";
@@ -86,10 +87,17 @@ int main(int argc, char** argv) {
     bake->add_option("--results", resultsPath, "Write per-bit verdicts and evidence as JSON");
     bake->add_option("--samples", opt.raycast.areaSamples, "Area samples per group and light for witness rays")
         ->check(CLI::Range(1, 1 << 20));
-    std::vector<std::string> stageNames{"raycast", "geometry"};
-    bake->add_option("--stages", stageNames, "Stages after the input/reach checks (default: raycast geometry)")
+    std::vector<std::string> stageNames{"raycast", "geometry", "gpu"};
+    bake->add_option("--stages", stageNames, "Stages after the input/reach checks (default: raycast,geometry,gpu)")
         ->delimiter(',')
-        ->check(CLI::IsMember({"raycast", "geometry"}));
+        ->check(CLI::IsMember({"raycast", "geometry", "gpu"}));
+    std::string method = "analytic";
+    bake->add_option("--method", method,
+                     "analytic (default, conservative) or gpu (the original stencil + occlusion-query method: a baseline, "
+                     "NOT conservative)")
+        ->check(CLI::IsMember({"analytic", "gpu"}));
+    bake->add_option("--gpu-resolution", opt.gpuResolution, "Pixels per side of each light view (GPU stages)")
+        ->check(CLI::Range(16, 16384));
     bake->add_flag("--dry-run", [&](int64_t) { opt.write = false; }, "Compute and report, but write no chunk file");
     bake->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
     bake->add_flag("--resume", opt.resume,
@@ -132,6 +140,8 @@ int main(int argc, char** argv) {
     opt.raycast.threads = opt.threads;
     opt.useRaycast = std::find(stageNames.begin(), stageNames.end(), "raycast") != stageNames.end();
     opt.useGeometry = std::find(stageNames.begin(), stageNames.end(), "geometry") != stageNames.end();
+    opt.useGpu = std::find(stageNames.begin(), stageNames.end(), "gpu") != stageNames.end();
+    opt.gpuBaseline = method == "gpu";
     if (*bake) return runBakeCommand(opt, resultsPath, quiet);
     if (*diff) return runDiff(diffOpt, std::cout, std::cerr);
     if (*explain) return runExplain(explainOpt, std::cout, std::cerr);

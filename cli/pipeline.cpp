@@ -1,6 +1,9 @@
 #include "cli/pipeline.h"
 
 #include <chrono>
+#include <cmath>
+
+#include <glm/geometric.hpp>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -14,6 +17,9 @@
 #include "core/chunk_writer.h"
 #include "core/format.h"
 #include "core/window.h"
+#include "gpu/baseline.h"
+#include "gpu/confirm_stage.h"
+#include "gpu/gl_context.h"
 
 namespace fs = std::filesystem;
 
@@ -71,6 +77,25 @@ std::string readFile(const std::string& path, bool& ok) {
     ss << in.rdbuf();
     ok = bool(in) || in.eof();
     return ss.str();
+}
+
+// Targets for a dense witness search around the pixels where the GPU confirmation saw
+// samples pass: each pixel's ray and four rays a third of its footprint to the sides.
+std::vector<raycast::WitnessSearch> denseSearches(const std::vector<gpu::GroupPixels>& passed, const ChunkVerdicts& cv) {
+    std::vector<raycast::WitnessSearch> out;
+    for (const gpu::GroupPixels& gp : passed) {
+        if (gp.pixels.empty() || cv.at(gp.object, gp.group, gp.light).verdict != Verdict::Undecided) continue;
+        raycast::WitnessSearch ws{gp.object, gp.group, gp.light, {}};
+        for (const gpu::PassedPixel& px : gp.pixels) {
+            const glm::dvec3 d = px.lsDirection;
+            const glm::dvec3 u = glm::normalize(std::abs(d.y) < 0.9 ? glm::cross(d, glm::dvec3(0, 1, 0)) : glm::cross(d, glm::dvec3(1, 0, 0)));
+            const glm::dvec3 v = glm::cross(d, u);
+            const double r = px.footprint / 3.0;
+            for (const glm::dvec3& off : {glm::dvec3(0.0), r * u, -r * u, r * v, -r * v}) ws.targets.push_back(px.lsPoint + off);
+        }
+        out.push_back(std::move(ws));
+    }
+    return out;
 }
 
 // The masks to write for one chunk, in element order. Skipped objects keep their old <shadow>.
@@ -137,11 +162,33 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
     ReachStage reach;
     raycast::RaycastStage rays(opt.raycast);
     geometry::GeometryStage volumes(opt.geometry);
-    std::vector<Stage*> stages{&reach};
-    if (opt.useRaycast) stages.push_back(&rays);
-    if (opt.useGeometry) stages.push_back(&volumes);
-    result.stages.resize(stages.size());
+    gpu::GpuConfirmStage confirm(gpu::GpuConfirmOptions{opt.gpuResolution});
+    gpu::GpuBaselineMethod baseline(gpu::GpuBaselineOptions{opt.gpuResolution});
+    bool useGpu = opt.useGpu && !opt.gpuBaseline;
+    if (useGpu || opt.gpuBaseline) {
+        // The GPU passes need an OpenGL context; without one the confirmation is skipped
+        // (its bits stay undecided, kept) and the baseline cannot run at all.
+        Expected<std::unique_ptr<gpu::GlContext>> probe = gpu::createOffscreenContext(16, 16);
+        if (!probe) {
+            if (opt.gpuBaseline) return probe.error();
+            result.notes.push_back("gpu stage skipped: " + probe.error().message);
+            useGpu = false;
+        }
+    }
+    std::vector<Stage*> stages;
+    if (opt.gpuBaseline) {
+        stages = {&baseline};
+    } else {
+        stages = {&reach};
+        if (opt.useRaycast) stages.push_back(&rays);
+        if (opt.useGeometry) stages.push_back(&volumes);
+        if (useGpu) stages.push_back(&confirm);
+    }
+    // The dense witness search where the GPU confirmation saw samples pass.
+    const bool densePass = useGpu && opt.useRaycast;
+    result.stages.resize(stages.size() + (densePass ? 1 : 0));
     for (size_t s = 0; s < stages.size(); ++s) result.stages[s].name = stages[s]->name();
+    if (densePass) result.stages.back().name = "raycast (gpu pixels)";
     std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>> terrainMeshes;
     struct Staged {
         std::string temp, target;
@@ -191,6 +238,16 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
                 return e;
             }
             result.stages[s].stats.add(st);
+        }
+        if (densePass) {
+            StageStats st;
+            if (Status status = rays.searchAt(window, cv, denseSearches(confirm.passedPixels(), cv), st); !status) {
+                discardStaged();
+                Error e = status.error();
+                if (e.file.empty()) e.file = cf.path;
+                return e;
+            }
+            result.stages.back().stats.add(st);
         }
         cv.simulated = simulatedEffects(window, cv);
         if (opt.write) {

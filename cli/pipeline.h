@@ -36,7 +36,12 @@ struct BakeOptions {
     raycast::RaycastOptions raycast;
     bool useRaycast = true;   // witness rays (proves 1s)
     bool useGeometry = true;  // exact shadow volumes (proves 0s)
+    bool useGpu = true;       // conservative GPU confirmation (proves 0s; skipped without GL)
     geometry::GeometryOptions geometry;
+    // The original tool's method instead of the analytic pipeline (a baseline to compare
+    // with: NOT conservative, see gpu/baseline.h).
+    bool gpuBaseline = false;
+    int gpuResolution = 1024;  // pixels per side of each light view
     bool write = true;        // false: compute only (tests, reports)
     // Long bakes: commit each chunk as soon as it is baked, record what was written, and
     // skip chunks whose inputs and file are unchanged since (cli/resume.h).
@@ -56,6 +61,7 @@ struct BakeResult {
     double loadSeconds = 0, writeSeconds = 0, totalSeconds = 0;
     int chunksWritten = 0;
     int chunksResumed = 0;  // skipped by --resume: unchanged since the last bake
+    std::vector<std::string> notes;  // what the bake did differently from what was asked
 };
 
 // Progress callback: (chunks done, chunks total).

@@ -13,7 +13,7 @@ BitCounts countBits(const BakeResult& r) {
                 ++c.bits;
                 switch (d.verdict) {
                     case Verdict::Culled: ++c.culled; ++c.culledBy[d.stage]; break;
-                    case Verdict::Kept: ++c.kept; ++c.provedKept; break;
+                    case Verdict::Kept: ++c.kept; ++c.provedKept; ++c.keptBy[d.stage]; break;
                     case Verdict::Undecided: ++c.kept; ++c.undecided; break;
                 }
             }
@@ -42,17 +42,16 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
     s += ", groups " + std::to_string(c.groups) + ", lights " + std::to_string(r.settings.lights.size()) + "\n";
     s += "bits " + std::to_string(c.bits) + ": kept " + std::to_string(c.kept) + ", culled " + std::to_string(c.culled) +
          " (" + pct(c.culled, c.bits) + ")\n";
-    s += "  proved 1 by witness ray   " + std::to_string(c.provedKept) + "\n";
-    s += "  proved 0                  " + std::to_string(c.culled);
-    if (!c.culledBy.empty()) {
-        s += " (";
-        bool first = true;
-        for (const auto& [stage, n] : c.culledBy) {
-            s += (first ? "" : ", ") + stage + " " + std::to_string(n);
-            first = false;
-        }
-        s += ")";
-    }
+    auto byStage = [](const std::map<std::string, uint64_t>& m) {
+        std::string t;
+        for (const auto& [stage, n] : m) t += (t.empty() ? " (" : ", ") + stage + " " + std::to_string(n);
+        return t.empty() ? t : t + ")";
+    };
+    const bool baselineOnly = c.keptBy.size() + c.culledBy.size() > 0 && c.keptBy.count("gpu-baseline") + c.culledBy.count("gpu-baseline") > 0;
+    s += std::string(baselineOnly ? "  kept by samples passed    " : "  proved 1 by witness ray   ") + std::to_string(c.provedKept) +
+         byStage(c.keptBy) + "\n";
+    s += std::string(baselineOnly ? "  culled, 0 samples passed  " : "  proved 0                  ") + std::to_string(c.culled) +
+         byStage(c.culledBy);
     s += "\n  undecided, kept as 1      " + std::to_string(c.undecided) + "\n";
     s += "time: load " + fmt("%.2f s", r.loadSeconds);
     for (const StageTiming& st : r.stages) {

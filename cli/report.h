@@ -15,6 +15,7 @@ struct BitCounts {
     uint64_t provedKept = 0;               // 1 with a witness
     uint64_t undecided = 0;                // 1 because nobody could decide
     std::map<std::string, uint64_t> culledBy;  // stage -> bits proved 0
+    std::map<std::string, uint64_t> keptBy;    // stage -> bits kept with evidence
 };
 
 BitCounts countBits(const BakeResult& r);

@@ -42,7 +42,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
+#include <cstdint>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <map>
 #include <numeric>
@@ -64,18 +67,24 @@ constexpr float kBig = 1e30f;
 // One point per piece; the geometry shader turns it into the quad that covers every pixel
 // the (widened) piece can touch, clamped to the view.
 const char* kRasterVs = R"(#version 430 core
-layout(location = 0) in vec4 aV01;
-layout(location = 1) in vec4 aV2;
-layout(location = 2) in vec4 aPlane;
-layout(location = 3) in vec4 aMisc;
-layout(location = 4) in uint aId;
-out vec4 gV01;
-out vec4 gV2;
+layout(location = 0) in vec4 aBox;
+layout(location = 1) in vec4 aE0;
+layout(location = 2) in vec4 aE1;
+layout(location = 3) in vec4 aE2;
+layout(location = 4) in vec4 aPlane;
+layout(location = 5) in vec4 aPlane2;
+layout(location = 6) in vec4 aMisc;
+layout(location = 7) in uint aId;
+out vec4 gBox;
+out vec4 gE0;
+out vec4 gE1;
+out vec4 gE2;
 out vec4 gPlane;
+out vec4 gPlane2;
 out vec4 gMisc;
 flat out uint gId;
 void main() {
-    gV01 = aV01; gV2 = aV2; gPlane = aPlane; gMisc = aMisc; gId = aId;
+    gBox = aBox; gE0 = aE0; gE1 = aE1; gE2 = aE2; gPlane = aPlane; gPlane2 = aPlane2; gMisc = aMisc; gId = aId;
     gl_Position = vec4(0.0, 0.0, 0.0, 1.0);
 }
 )";
@@ -83,35 +92,35 @@ void main() {
 const char* kRasterGs = R"(#version 430 core
 layout(points) in;
 layout(triangle_strip, max_vertices = 4) out;
-in vec4 gV01[];
-in vec4 gV2[];
+in vec4 gBox[];
+in vec4 gE0[];
+in vec4 gE1[];
+in vec4 gE2[];
 in vec4 gPlane[];
+in vec4 gPlane2[];
 in vec4 gMisc[];
 flat in uint gId[];
-flat out vec2 fP0;
-flat out vec2 fP1;
-flat out vec2 fP2;
-flat out vec4 fS;      // s0, orient, planeValid, kind
-flat out vec4 fPlane;  // a, b, zmin, zmax
-flat out vec2 fDil;    // dilate, margin
+flat out vec4 fBox;
+flat out vec4 fE0;
+flat out vec4 fE1;
+flat out vec4 fE2;
+flat out vec4 fPlane;
+flat out vec4 fPlane2;
+flat out vec4 fMisc;
 flat out uint fId;
 uniform vec2 uSize;
 void corner(vec2 c) {
-    fP0 = gV01[0].xy; fP1 = gV01[0].zw; fP2 = gV2[0].xy;
-    fS = vec4(gV2[0].z, gV2[0].w, gMisc[0].z, gMisc[0].w);
-    fPlane = gPlane[0];
-    fDil = gMisc[0].xy;
-    fId = gId[0];
+    fBox = gBox[0]; fE0 = gE0[0]; fE1 = gE1[0]; fE2 = gE2[0];
+    fPlane = gPlane[0]; fPlane2 = gPlane2[0]; fMisc = gMisc[0]; fId = gId[0];
     gl_Position = vec4(c / uSize * 2.0 - 1.0, 0.0, 1.0);
     EmitVertex();
 }
 void main() {
-    vec2 p0 = gV01[0].xy, p1 = gV01[0].zw, p2 = gV2[0].xy;
     // Half a pixel (the square's half side) + dilation + margin, and 0.01 px so that
     // centres on the quad's edge are not lost to the rasteriser's tie rule.
     float h = 0.5 + gMisc[0].x + gMisc[0].y + 0.01;
-    vec2 lo = max(min(min(p0, p1), p2) - h, vec2(0.0));
-    vec2 hi = min(max(max(p0, p1), p2) + h, uSize);
+    vec2 lo = max(gBox[0].xy - h, vec2(0.0));
+    vec2 hi = min(gBox[0].zw + h, uSize);
     if (lo.x >= hi.x || lo.y >= hi.y) return;
     corner(lo);
     corner(vec2(hi.x, lo.y));
@@ -122,12 +131,13 @@ void main() {
 )";
 
 const char* kRasterFs = R"(#version 430 core
-flat in vec2 fP0;
-flat in vec2 fP1;
-flat in vec2 fP2;
-flat in vec4 fS;
-flat in vec4 fPlane;
-flat in vec2 fDil;
+flat in vec4 fBox;
+flat in vec4 fE0;
+flat in vec4 fE1;
+flat in vec4 fE2;
+flat in vec4 fPlane;   // x0, y0, s0, a
+flat in vec4 fPlane2;  // b, zmin, zmax, planeValid
+flat in vec4 fMisc;    // dilate, margin, kind
 flat in uint fId;
 uniform int uMode;          // 0 occluder sheet, 1 receivers, 2 caster query
 uniform bool uPerspective;  // s = 1/z (else s = depth)
@@ -144,48 +154,42 @@ layout(std430, binding = 1) buffer Records { uvec4 records[]; };
 layout(location = 0) out vec4 oValue;
 const float BIG = 1e30;
 
-// Separating axes for the square of half side h around c against the piece (a triangle,
-// or a segment when p2 == p1): x, y and the edge normals. Every test is widened by m.
-bool overlaps(vec2 c, float h, float m) {
-    vec2 q0 = fP0 - c, q1 = fP1 - c, q2 = fP2 - c;
-    if (min(min(q0.x, q1.x), q2.x) > h + m || max(max(q0.x, q1.x), q2.x) < -h - m) return false;
-    if (min(min(q0.y, q1.y), q2.y) > h + m || max(max(q0.y, q1.y), q2.y) < -h - m) return false;
-    vec2 e[3] = vec2[3](q1 - q0, q2 - q1, q0 - q2);
-    for (int i = 0; i < 3; ++i) {
-        vec2 n = vec2(-e[i].y, e[i].x);
-        float len = abs(n.x) + abs(n.y);
-        if (len == 0.0) continue;
-        float t0 = dot(q0, n), t1 = dot(q1, n), t2 = dot(q2, n);
-        float r = (h + m) * len;
-        if (min(min(t0, t1), t2) > r || max(max(t0, t1), t2) < -r) return false;
-    }
-    return true;
+// Separating axis along one edge normal: the square of half side h around c, widened by
+// m, meets the triangle's extent [lo, hi] along n.
+bool axisOverlaps(vec4 e, vec2 c, float h, float m) {
+    float t = dot(e.xy, c);
+    float r = h * (abs(e.x) + abs(e.y)) + m;
+    return t + r >= e.z && t - r <= e.w;
 }
 
-// Point c lies inside the triangle by at least m (orientation from the CPU).
-bool robustInside(vec2 c, float m) {
-    vec2 p[3] = vec2[3](fP0, fP1, fP2);
-    for (int i = 0; i < 3; ++i) {
-        vec2 e = p[(i + 1) % 3] - p[i];
-        vec2 d = c - p[i];
-        float cr = (e.x * d.y - e.y * d.x) * fS.y;
-        if (!(cr >= m * length(e))) return false;
-    }
-    return true;
+// Separating axes x, y (the bounding box) and the three edge normals: the square meets the
+// piece (a triangle, or a segment whose third edge has length 0).
+bool overlaps(vec2 c, float h, float m) {
+    float w = h + m;
+    if (c.x + w < fBox.x || c.x - w > fBox.z || c.y + w < fBox.y || c.y - w > fBox.w) return false;
+    return axisOverlaps(fE0, c, h, m) && axisOverlaps(fE1, c, h, m) && axisOverlaps(fE2, c, h, m);
 }
+
+// Point c lies inside the triangle, at least m from each edge's line (and from the
+// parallel through the opposite vertex, which only asks more).
+bool axisInside(vec4 e, vec2 c, float m) {
+    float t = dot(e.xy, c);
+    return min(t - e.z, e.w - t) >= m;
+}
+bool robustInside(vec2 c, float m) { return axisInside(fE0, c, m) && axisInside(fE1, c, m) && axisInside(fE2, c, m); }
 
 // Bounds of the piece's depth over the square of half side h around c: the plane's
 // extremes at the square's corners, clamped by the vertices' range, widened by margins.
 void depthBounds(vec2 c, float h, out float zlo, out float zhi) {
-    zlo = fPlane.z;
-    zhi = fPlane.w;
-    if (fS.z > 0.5) {
-        float a = fPlane.x, b = fPlane.y;
-        vec2 d = c - fP0;
-        float sc = fS.x + a * d.x + b * d.y;
+    zlo = fPlane2.y;
+    zhi = fPlane2.z;
+    if (fPlane2.w > 0.5) {
+        float a = fPlane.w, b = fPlane2.x;
+        vec2 d = c - fPlane.xy;
+        float sc = fPlane.z + a * d.x + b * d.y;
         float g = abs(a) + abs(b);
         float spread = g * h;
-        float err = 1e-6 * (abs(fS.x) + g * (abs(d.x) + abs(d.y) + h + abs(fP0.x) + abs(fP0.y) + uSizeMax));
+        float err = 1e-6 * (abs(fPlane.z) + g * (abs(d.x) + abs(d.y) + h + abs(fPlane.x) + abs(fPlane.y) + uSizeMax));
         float smin = sc - spread - err, smax = sc + spread + err;
         if (!uPerspective) {
             zlo = max(zlo, smin);
@@ -201,10 +205,10 @@ void depthBounds(vec2 c, float h, out float zlo, out float zhi) {
 
 void main() {
     vec2 c = gl_FragCoord.xy;
-    float m = fDil.y;
+    float m = fMisc.y;
     if (uMode == 0) {
         if (!overlaps(c, 0.5, m)) discard;
-        if (fS.w > 0.5) {  // a crack edge touches the pixel: this sheet does not cover it whole
+        if (fMisc.z > 0.5) {  // a crack edge touches the pixel: this sheet does not cover it whole
             oValue = vec4(BIG, 0.0, 0.0, 0.0);
             return;
         }
@@ -213,12 +217,12 @@ void main() {
         // Any point of the square robustly inside suffices (the square meets no crack, so
         // it lies wholly inside the sheet or wholly outside); five points, so that a
         // centre on an edge shared inside the sheet is not lost.
-        bool inside = fS.y != 0.0 && (robustInside(c, m) || robustInside(c + vec2(0.25, 0.25), m) ||
-                                      robustInside(c + vec2(-0.25, 0.25), m) || robustInside(c + vec2(0.25, -0.25), m) ||
-                                      robustInside(c + vec2(-0.25, -0.25), m));
+        bool inside = robustInside(c, m) || robustInside(c + vec2(0.25, 0.25), m) ||
+                      robustInside(c + vec2(-0.25, 0.25), m) || robustInside(c + vec2(0.25, -0.25), m) ||
+                      robustInside(c + vec2(-0.25, -0.25), m);
         oValue = vec4(zhi, inside ? 1.0 : 0.0, 0.0, 0.0);
     } else if (uMode == 1) {
-        float h = 0.5 + fDil.x;
+        float h = 0.5 + fMisc.x;
         if (!overlaps(c, h, m)) discard;
         float zlo, zhi;
         depthBounds(c, h + m, zlo, zhi);
@@ -277,17 +281,48 @@ struct TriRef {
     uint32_t object, triangle;
 };
 
-// A connected opaque sheet of one object: triangles facing the same way, joined across
-// edges shared by exactly two of them; `orient` is their screen orientation.
+// A connected opaque sheet of one object: triangles facing the same way (so the same
+// orientation on screen), joined across edges shared by exactly two of them.
 struct Sheet {
     std::vector<TriRef> triangles;
     std::vector<TriRef> cracks;  // (object, edge index)
-    int orient = 0;
 };
 
 struct Caster {
     uint32_t object, triangle, id;
 };
+
+// Pixels [x0, x1) x [y0, y1).
+struct PixelRect {
+    int x0, y0, x1, y1;
+    static PixelRect empty() { return {INT32_MAX, INT32_MAX, INT32_MIN, INT32_MIN}; }
+    bool isEmpty() const { return x0 >= x1 || y0 >= y1; }
+    void add(const PixelRect& o) {
+        x0 = std::min(x0, o.x0), y0 = std::min(y0, o.y0), x1 = std::max(x1, o.x1), y1 = std::max(y1, o.y1);
+    }
+    PixelRect intersect(const PixelRect& o) const {
+        return {std::max(x0, o.x0), std::max(y0, o.y0), std::min(x1, o.x1), std::min(y1, o.y1)};
+    }
+    bool overlaps(const PixelRect& o) const { return !intersect(o).isEmpty(); }
+};
+
+// The pixels a piece's fragments can reach: those whose square, widened by the piece's
+// dilation and margin, meets its bounding box (the geometry shader's quad), clamped to the
+// view, with a pixel to spare.
+PixelRect reachOf(const RasterPiece& r, const LightView& v) {
+    const double h = 0.5 + double(r.misc[0]) + double(r.misc[1]) + 0.01 + 1.0;
+    const double lx = double(r.box[0]) - h, ly = double(r.box[1]) - h;
+    const double hx = double(r.box[2]) + h, hy = double(r.box[3]) + h;
+    return {int(std::clamp(std::floor(lx), 0.0, double(v.width))), int(std::clamp(std::floor(ly), 0.0, double(v.height))),
+            int(std::clamp(std::ceil(hx), 0.0, double(v.width))), int(std::clamp(std::ceil(hy), 0.0, double(v.height)))};
+}
+
+// Drops the pieces that cannot touch a pixel of `roi`.
+void keepTouching(std::vector<RasterPiece>& pieces, const PixelRect& roi, const LightView& v) {
+    pieces.erase(std::remove_if(pieces.begin(), pieces.end(),
+                                [&](const RasterPiece& r) { return !reachOf(r, v).overlaps(roi); }),
+                 pieces.end());
+}
 
 }  // namespace
 
@@ -297,6 +332,7 @@ struct GpuConfirmStage::Gl {
     RenderTarget work, occ, recv;
     GLuint vao = 0, vbo = 0, emptyVao = 0;
     GLuint ssbo[2] = {0, 0};
+    GLint64 maxStorageBlock = 0;  // bytes, GL_MAX_SHADER_STORAGE_BLOCK_SIZE
 };
 
 // Per run: the window's triangles and, per mesh, its edges.
@@ -348,14 +384,17 @@ Status GpuConfirmStage::ensureGl() {
     gl.BindVertexArray(g->vao);
     gl.BindBuffer(GL_ARRAY_BUFFER, g->vbo);
     const GLsizei stride = sizeof(RasterPiece);
-    for (GLuint k = 0; k < 4; ++k) {
+    for (GLuint k = 0; k < 7; ++k) {
         gl.EnableVertexAttribArray(k);
         gl.VertexAttribPointer(k, 4, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(size_t(16 * k)));
     }
-    gl.EnableVertexAttribArray(4);
-    gl.VertexAttribIPointer(4, 1, GL_UNSIGNED_INT, stride, reinterpret_cast<const void*>(size_t(64)));
+    gl.EnableVertexAttribArray(7);
+    gl.VertexAttribIPointer(7, 1, GL_UNSIGNED_INT, stride, reinterpret_cast<const void*>(offsetof(RasterPiece, id)));
     gl.BindVertexArray(0);
     gl.GenBuffers(2, g->ssbo);
+    GLint maxBlock = 0;
+    gl.GetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &maxBlock);
+    g->maxStorageBlock = maxBlock > 0 ? maxBlock : (16 << 20);
     if (Status st = gl.check("setting up the confirmation passes"); !st) return st;
     gl_ = std::move(g);
     return Status::ok();
@@ -454,10 +493,14 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
             const glm::dvec3 &a = to.positions[tri[0]], &b = to.positions[tri[1]], &c = to.positions[tri[2]];
             const glm::dvec3 n = glm::cross(b - a, c - a);
             const glm::dvec3 rd = rayDir(a);
-            const double f = glm::dot(n, rd), tol = 1e-9 * glm::length(n) * glm::length(rd);
+            // The facing sign is certain beyond this: the cross product's rounding is
+            // relative to |b-a||c-a|, not to |n| (which is small for slivers).
+            const double f = glm::dot(n, rd),
+                         tol = 1e-9 * glm::length(b - a) * glm::length(c - a) * glm::length(rd);
             const PrimitiveGroup& pg = mesh.groups[mesh.triangleGroup[tr]];
             // Screen orientation: U x V = -W, so a triangle is counter-clockwise exactly
-            // when its geometric normal points against the light's travel.
+            // when its geometric normal points against the light's travel. Triangles of
+            // one class have one orientation; edge-on ones are in no sheet.
             if (!pg.alphaTested && std::abs(f) > tol) cls[tr] = f < 0 ? 1 : -1;
             if (!anyReceiver) {
                 const double front = o.flipsWinding ? -f : f;
@@ -507,10 +550,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
             if (cls[tr] == 0) continue;
             const uint32_t root = uf.find(tr);
             auto [it, inserted] = sheetOfRoot.emplace(root, sheets.size());
-            if (inserted) {
-                sheets.emplace_back();
-                sheets.back().orient = cls[tr];
-            }
+            if (inserted) sheets.emplace_back();
             sheets[it->second].triangles.push_back({uint32_t(k), tr});
             const uint8_t bit = uint8_t(cls[tr] > 0 ? 1 : 2);
             for (int kk = 0; kk < 3; ++kk) {
@@ -525,8 +565,14 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
 
     // Storage for the query results, accumulated over the views.
     const GlApi& gl = gl_->session->gl;
-    const uint32_t cap = uint32_t(std::max(1, options_.maxPixelsPerGroup));
     const size_t Q = queries.size();
+    // Pixels kept per group: as asked, within the storage block limit (the counts are
+    // exact whatever the cap).
+    const uint64_t fit = uint64_t(std::min<GLint64>(gl_->maxStorageBlock, GLint64(256) << 20)) / (16 * uint64_t(Q));
+    const uint32_t cap = uint32_t(std::max<uint64_t>(1, std::min<uint64_t>(uint64_t(std::max(1, options_.maxPixelsPerGroup)), fit)));
+    if (uint64_t(Q) * 2 * 4 > uint64_t(gl_->maxStorageBlock) || fit == 0)
+        return makeError(ErrorKind::Internal, "", 0,
+                         "too many undecided groups (" + std::to_string(Q) + ") for one GPU storage block");
     {
         std::vector<uint32_t> zeros(2 * Q, 0);
         gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, gl_->ssbo[0]);
@@ -542,38 +588,45 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     for (size_t vi = 0; vi < views.size(); ++vi) {
         const LightView& view = views[vi];
         const PieceBuilder pb(view, nearZ);
+        // Casters first: the query reads the other passes only at the casters' pixels, so
+        // everything is drawn within that rectangle alone (scissor), and pieces that cannot
+        // touch it are dropped. Pixels outside it are never read.
+        std::vector<RasterPiece> casterPieces;
+        for (const Caster& c : casters) {
+            const auto& tri = w.objects[c.object].mesh->triangles[c.triangle];
+            pb.triangle(position(c.object, tri[0]), position(c.object, tri[1]), position(c.object, tri[2]), 0.0f, c.id,
+                        casterPieces);
+        }
+        PixelRect roi{0, 0, view.width, view.height};
+        if (!options_.collectViewStats) {
+            if (casterPieces.empty()) continue;  // the bit's group is not in this view
+            roi = PixelRect::empty();
+            for (const RasterPiece& r : casterPieces) roi.add(reachOf(r, view));
+        }
         // Occluder sheets, each with the pixel rectangle its fragments can reach.
         struct SheetPieces {
             std::vector<RasterPiece> pieces;
-            int x0, y0, x1, y1;
+            PixelRect rect;
         };
         std::vector<SheetPieces> sp;
         for (const Sheet& s : sheets) {
             SheetPieces p;
             for (const TriRef& tr : s.triangles) {
                 const auto& tri = w.objects[tr.object].mesh->triangles[tr.triangle];
-                // expected screen orientation: counter-clockwise (+1) for class +1
-                pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]),
-                            s.orient, 0.0f, 0, p.pieces);
+                pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]), 0.0f,
+                            0, p.pieces);
             }
-            if (p.pieces.empty()) continue;
+            keepTouching(p.pieces, roi, view);
+            if (p.pieces.empty()) continue;  // no triangle of the sheet reaches the rectangle
             for (const TriRef& cr : s.cracks) {
                 const auto& ends = work.edges[w.objects[cr.object].mesh]->ends[cr.triangle];
                 pb.segment(position(cr.object, ends[0]), position(cr.object, ends[1]), p.pieces);
             }
-            double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
-            for (const RasterPiece& r : p.pieces) {
-                lo[0] = std::min({lo[0], double(r.x0), double(r.x1), double(r.x2)});
-                hi[0] = std::max({hi[0], double(r.x0), double(r.x1), double(r.x2)});
-                lo[1] = std::min({lo[1], double(r.y0), double(r.y1), double(r.y2)});
-                hi[1] = std::max({hi[1], double(r.y0), double(r.y1), double(r.y2)});
-            }
-            const double pad = 0.5 + 0.1 + 1.0;
-            p.x0 = int(std::clamp(std::floor(lo[0] - pad), 0.0, double(view.width)));
-            p.x1 = int(std::clamp(std::ceil(hi[0] + pad), 0.0, double(view.width)));
-            p.y0 = int(std::clamp(std::floor(lo[1] - pad), 0.0, double(view.height)));
-            p.y1 = int(std::clamp(std::ceil(hi[1] + pad), 0.0, double(view.height)));
-            if (p.x0 >= p.x1 || p.y0 >= p.y1) continue;
+            keepTouching(p.pieces, roi, view);
+            p.rect = PixelRect::empty();
+            for (const RasterPiece& r : p.pieces) p.rect.add(reachOf(r, view));
+            p.rect = p.rect.intersect(roi);
+            if (p.rect.isEmpty()) continue;
             sp.push_back(std::move(p));
         }
         // Batches: sheets whose rectangles are disjoint cannot touch the same pixel, so
@@ -584,7 +637,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
             for (auto& b : batches) {
                 bool clash = false;
                 for (size_t o : b)
-                    if (sp[o].x0 < sp[s].x1 && sp[s].x0 < sp[o].x1 && sp[o].y0 < sp[s].y1 && sp[s].y0 < sp[o].y1) {
+                    if (sp[o].rect.overlaps(sp[s].rect)) {
                         clash = true;
                         break;
                     }
@@ -610,17 +663,15 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         const GLint recvFirst = GLint(all.size());
         for (const TriRef& tr : receivers) {
             const auto& tri = w.objects[tr.object].mesh->triangles[tr.triangle];
-            pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]), 0,
+            const size_t before = all.size();
+            pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]),
                         dilatePx, 0, all);
+            for (size_t k = all.size(); k-- > before;)
+                if (!reachOf(all[k], view).overlaps(roi)) all.erase(all.begin() + std::ptrdiff_t(k));
         }
         const GLint castFirst = GLint(all.size());
-        for (const Caster& c : casters) {
-            const auto& tri = w.objects[c.object].mesh->triangles[c.triangle];
-            pb.triangle(position(c.object, tri[0]), position(c.object, tri[1]), position(c.object, tri[2]), 0, 0.0f,
-                        c.id, all);
-        }
+        all.insert(all.end(), casterPieces.begin(), casterPieces.end());
         const GLint end = GLint(all.size());
-        if (castFirst == end && !options_.collectViewStats) continue;  // the group is not in this view
 
         // Upload and draw.
         gl.BindBuffer(GL_ARRAY_BUFFER, gl_->vbo);
@@ -640,6 +691,8 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.Uniform1ui(gl.uniform(prog, "uView"), uint32_t(vi));
         const GLint uMode = gl.uniform(prog, "uMode");
         gl.Viewport(0, 0, view.width, view.height);
+        gl.Enable(GL_SCISSOR_TEST);
+        gl.Scissor(roi.x0, roi.y0, roi.x1 - roi.x0, roi.y1 - roi.y0);
         gl.Disable(GL_DEPTH_TEST);
         gl.Disable(GL_STENCIL_TEST);
         gl.Disable(GL_CULL_FACE);
@@ -690,6 +743,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gl_->ssbo[1]);
         if (end > castFirst) gl.DrawArrays(GL_POINTS, castFirst, end - castFirst);
         gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+        gl.Disable(GL_SCISSOR_TEST);
         gl.MemoryBarrier(GL_ALL_BARRIER_BITS);
         gl.ActiveTexture(GL_TEXTURE1);
         gl.BindTexture(GL_TEXTURE_2D, 0);

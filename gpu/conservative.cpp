@@ -63,8 +63,8 @@ double pointTriangleDistance(const glm::dvec3& p, const glm::dvec3& a, const glm
 PieceBuilder::PieceBuilder(const LightView& view, double nearZ)
     : view_(view), nearZ_(nearZ), guard_(2 * view.t) {}
 
-void PieceBuilder::triangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, int expectOrient,
-                            float dilatePx, uint32_t id, std::vector<RasterPiece>& out) const {
+void PieceBuilder::triangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, float dilatePx,
+                            uint32_t id, std::vector<RasterPiece>& out) const {
     glm::dvec3 poly[16] = {view_.toView(a), view_.toView(b), view_.toView(c)};
     int n = 3;
     if (view_.perspective) {
@@ -79,7 +79,7 @@ void PieceBuilder::triangle(const glm::dvec3& a, const glm::dvec3& b, const glm:
     }
     for (int k = 1; k + 1 < n; ++k) {
         const glm::dvec3 tri[3] = {poly[0], poly[k], poly[k + 1]};
-        emit(tri, expectOrient, dilatePx, 0.0f, id, out);
+        emit(tri, dilatePx, 0.0f, id, out);
     }
 }
 
@@ -102,10 +102,10 @@ void PieceBuilder::segment(const glm::dvec3& a, const glm::dvec3& b, std::vector
         if (!clip([&](const glm::dvec3& v) { return g * v.z + v.y; })) return;
     }
     const glm::dvec3 seg[3] = {p, q, q};
-    emit(seg, 0, 0.0f, 1.0f, 0, out);
+    emit(seg, 0.0f, 1.0f, 0, out);
 }
 
-void PieceBuilder::emit(const glm::dvec3* v, int expectOrient, float dilatePx, float kind, uint32_t id,
+void PieceBuilder::emit(const glm::dvec3* v, float dilatePx, float kind, uint32_t id,
                         std::vector<RasterPiece>& out) const {
     glm::dvec2 P[3];
     double s[3], z[3];
@@ -122,17 +122,27 @@ void PieceBuilder::emit(const glm::dvec3* v, int expectOrient, float dilatePx, f
     if (maxX < -reach || maxY < -reach || minX > W + reach || minY > H + reach) return;
 
     RasterPiece r{};
-    r.x0 = float(P[0].x), r.y0 = float(P[0].y), r.x1 = float(P[1].x), r.y1 = float(P[1].y);
-    r.x2 = float(P[2].x), r.y2 = float(P[2].y);
-    r.s0 = float(s[0]);
-    r.zmin = float(std::min({z[0], z[1], z[2]}));
-    r.zmax = float(std::max({z[0], z[1], z[2]}));
-    r.dilate = dilatePx;
+    r.box[0] = float(minX), r.box[1] = float(minY), r.box[2] = float(maxX), r.box[3] = float(maxY);
+    for (int k = 0; k < 3; ++k) {
+        const glm::dvec2 e = P[(k + 1) % 3] - P[k];
+        const double len = glm::length(e);
+        if (!(len > 0)) continue;  // n = 0, lo = hi = 0: no constraint, never "inside"
+        const glm::dvec2 n(-e.y / len, e.x / len);
+        const double tEdge = glm::dot(n, P[k]), tOpp = glm::dot(n, P[(k + 2) % 3]);
+        r.edge[k][0] = float(n.x);
+        r.edge[k][1] = float(n.y);
+        r.edge[k][2] = float(std::min(tEdge, tOpp));
+        r.edge[k][3] = float(std::max(tEdge, tOpp));
+    }
+    r.plane[0] = float(P[0].x), r.plane[1] = float(P[0].y), r.plane[2] = float(s[0]);
+    r.plane2[1] = float(std::min({z[0], z[1], z[2]}));
+    r.plane2[2] = float(std::max({z[0], z[1], z[2]}));
+    r.misc[0] = dilatePx;
     // Float coordinates are within ~6e-8 relative of these; the shader's arithmetic adds a
     // few more ulps. The margin is far above both.
     const double maxAbs = std::max({std::abs(minX), std::abs(maxX), std::abs(minY), std::abs(maxY)});
-    r.margin = float(1e-3 + 1e-6 * (maxAbs + std::max(W, H)));
-    r.kind = kind;
+    r.misc[1] = float(1e-3 + 1e-6 * (maxAbs + std::max(W, H)));
+    r.misc[2] = kind;
     r.id = id;
     const glm::dvec2 d1 = P[1] - P[0], d2 = P[2] - P[0], d3 = P[2] - P[1];
     const double det = d1.x * d2.y - d1.y * d2.x;
@@ -141,15 +151,11 @@ void PieceBuilder::emit(const glm::dvec3* v, int expectOrient, float dilatePx, f
     // otherwise the shader keeps to the vertices' depth range, which is always sound.
     if (kind == 0.0f && maxLen2 > 0 && std::abs(det) > 1e-6 * maxLen2) {
         const double ds1 = s[1] - s[0], ds2 = s[2] - s[0];
-        r.a = float((ds1 * d2.y - ds2 * d1.y) / det);
-        r.b = float((d1.x * ds2 - d2.x * ds1) / det);
-        r.planeValid = 1.0f;
-        if (std::isfinite(r.a) && std::isfinite(r.b)) {
-            const int o = det > 0 ? 1 : -1;
-            r.orient = (expectOrient != 0 && o == expectOrient) ? float(o) : 0.0f;
-        } else {
-            r.a = r.b = 0.0f;
-            r.planeValid = 0.0f;
+        const double a = (ds1 * d2.y - ds2 * d1.y) / det, b = (d1.x * ds2 - d2.x * ds1) / det;
+        if (std::isfinite(float(a)) && std::isfinite(float(b))) {
+            r.plane[3] = float(a);
+            r.plane2[0] = float(b);
+            r.plane2[3] = 1.0f;
         }
     }
     out.push_back(r);

@@ -18,34 +18,39 @@
 
 namespace shadowcull::gpu {
 
-// One triangle (kind 0) or edge segment (kind 1, p2 == p1) in pixel coordinates, with the
-// plane of s over the pixel plane: s(x, y) = s0 + a (x - x0) + b (y - y0), s being the depth
-// for orthographic views and 1/z for perspective ones (both are affine in pixel
-// coordinates over a planar triangle). 17 x 4 bytes, the vertex layout of the point draw.
+// One triangle (kind 0) or edge segment (kind 1) in pixel coordinates, as the geometry
+// shader gets it (one point each). Computed in double, stored in float:
+//  - box: the bounding box (pixels);
+//  - edge k: the unit normal n of edge k (vertex k to k+1) and the extent [lo, hi] of the
+//    triangle along n (one bound is the edge's line, the other the opposite vertex). These
+//    give both the separating-axis overlap test with a pixel square and the "inside by a
+//    margin" test, without any orientation; a zero-length edge has n = 0 and lo = hi = 0;
+//  - the plane of s over the pixel plane, s(x, y) = s0 + a (x - x0) + b (y - y0), s being
+//    the depth for orthographic views and 1/z for perspective ones (both affine in pixel
+//    coordinates over a planar triangle), usable only when planeValid; and the depth range
+//    [zmin, zmax] of the piece's vertices, which always bounds it.
 struct RasterPiece {
-    float x0, y0, x1, y1;
-    float x2, y2, s0, orient;         // orient: +1 / -1 robustly CCW / CW, 0 unknown or not wanted
-    float a, b, zmin, zmax;           // plane gradient; depth range of the piece's vertices
-    float dilate, margin, planeValid, kind;  // extra half-width (px); coverage margin (px); plane usable; 0 tri / 1 edge
-    uint32_t id;                      // query index (casters), else 0
+    float box[4];      // xmin, ymin, xmax, ymax
+    float edge[3][4];  // nx, ny, lo, hi
+    float plane[4];    // x0, y0, s0, a
+    float plane2[4];   // b, zmin, zmax, planeValid (0/1)
+    float misc[4];     // dilate (px, extra half-width), margin (px), kind (0 tri, 1 edge), 0
+    uint32_t id;       // query index (casters), else 0
 };
-static_assert(sizeof(RasterPiece) == 17 * 4, "vertex layout");
+static_assert(sizeof(RasterPiece) == 29 * 4, "vertex layout");
 
 class PieceBuilder {
 public:
     // nearZ: perspective views only (> 0).
     PieceBuilder(const LightView& view, double nearZ);
-    // Appends the pieces of triangle (a, b, c) (window-local). `expectOrient` (+1/-1):
-    // the screen orientation the triangle must have for "pixel centre inside" tests (a
-    // piece found otherwise gets orient 0); 0 when no such test is wanted.
-    void triangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, int expectOrient, float dilatePx,
-                  uint32_t id, std::vector<RasterPiece>& out) const;
+    // Appends the pieces of triangle (a, b, c) (window-local).
+    void triangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, float dilatePx, uint32_t id,
+                  std::vector<RasterPiece>& out) const;
     // Appends the segment a-b (an edge that cracks an occluder's cover).
     void segment(const glm::dvec3& a, const glm::dvec3& b, std::vector<RasterPiece>& out) const;
 
 private:
-    void emit(const glm::dvec3* v, int expectOrient, float dilatePx, float kind, uint32_t id,
-              std::vector<RasterPiece>& out) const;
+    void emit(const glm::dvec3* v, float dilatePx, float kind, uint32_t id, std::vector<RasterPiece>& out) const;
     const LightView& view_;
     double nearZ_;
     double guard_;

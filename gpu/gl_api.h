@@ -21,6 +21,7 @@ namespace shadowcull::gpu {
     X(PFNGLENABLEPROC, Enable)                                                       \
     X(PFNGLDISABLEPROC, Disable)                                                     \
     X(PFNGLVIEWPORTPROC, Viewport)                                                   \
+    X(PFNGLSCISSORPROC, Scissor)                                                     \
     X(PFNGLCLEARPROC, Clear)                                                         \
     X(PFNGLCLEARCOLORPROC, ClearColor)                                               \
     X(PFNGLCLEARDEPTHPROC, ClearDepth)                                               \

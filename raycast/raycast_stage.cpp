@@ -303,24 +303,30 @@ struct Tracer {
 }  // namespace
 
 Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
-    const auto t0 = std::chrono::steady_clock::now();
-    Impl& im = *impl_;
-    if (!im.device) return makeError(ErrorKind::Internal, "", 0, "Embree device could not be created");
-
-    // Work: (centre object, group) with at least one undecided light.
-    struct Task {
-        size_t object;  // index into cv.objects
-        int group;
-    };
-    std::vector<Task> tasks;
+    // One search per (centre object, group) with an undecided light: the group's samples,
+    // for every such light.
+    std::vector<WitnessSearch> searches;
     for (size_t oi = 0; oi < cv.objects.size(); ++oi)
         for (int g = 0; g < cv.objects[oi].groupCount; ++g)
             for (int l = 0; l < cv.lightCount; ++l)
                 if (cv.at(oi, g, l).verdict == Verdict::Undecided) {
-                    tasks.push_back({oi, g});
+                    searches.push_back({oi, g, -1, {}});
                     break;
                 }
-    if (tasks.empty()) return Status::ok();
+    return search(window, cv, searches, stats, "witness ray");
+}
+
+Status RaycastStage::searchAt(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch> searches,
+                              StageStats& stats) {
+    return search(window, cv, searches, stats, "witness ray where the GPU stage saw samples pass");
+}
+
+Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch>& searches,
+                            StageStats& stats, const char* reason) {
+    const auto t0 = std::chrono::steady_clock::now();
+    Impl& im = *impl_;
+    if (!im.device) return makeError(ErrorKind::Internal, "", 0, "Embree device could not be created");
+    if (searches.empty()) return Status::ok();
 
     RTCScene scene = nullptr;
     try {
@@ -338,22 +344,24 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
                 tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
 
         std::atomic<uint64_t> rays{0}, kept{0}, examined{0};
-        tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
+        tbb::parallel_for(size_t(0), searches.size(), [&](size_t ti) {
             enableFlushToZero();
-            const Task& task = tasks[ti];
+            WitnessSearch& task = searches[ti];
             const ObjectVerdicts& ov = cv.objects[task.object];
             const uint32_t object = uint32_t(ov.windowObject);
-            const std::vector<glm::dvec3> samples =
-                sampleGroup(window.objects[object], uint32_t(task.group), im.opt.areaSamples, im.opt.maxFeatureSamples);
+            if (task.targets.empty())
+                task.targets = sampleGroup(window.objects[object], uint32_t(task.group), im.opt.areaSamples,
+                                           im.opt.maxFeatureSamples);
             uint64_t localRays = 0;
             for (int l = 0; l < cv.lightCount; ++l) {
+                if (task.light >= 0 && l != task.light) continue;
                 Decision& d = cv.at(task.object, task.group, l);
                 if (d.verdict != Verdict::Undecided) continue;
                 ++examined;
                 const Light& L = window.lsLights[size_t(l)];
-                for (const glm::dvec3& s : samples) {
+                for (const glm::dvec3& s : task.targets) {
                     if (std::optional<Witness> wit = tracer.tryRay(L, object, uint32_t(task.group), s, &localRays)) {
-                        decide(d, Verdict::Kept, "raycast", "witness ray", std::move(wit));
+                        decide(d, Verdict::Kept, "raycast", reason, std::move(wit));
                         ++kept;
                         break;
                     }

@@ -9,6 +9,9 @@
 #include <atomic>
 #include <memory>
 #include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
 
 #include "core/stage.h"
 
@@ -19,6 +22,16 @@ struct RaycastOptions {
     int maxFeatureSamples = 1024;  // vertex and edge-midpoint samples per group and light
     int maxHitsPerRay = 48;        // surfaces behind p examined per witness line
     int threads = 0;               // Embree build threads; 0 = all
+};
+
+// A witness search for one (group, light) — or every undecided light of the group when
+// `light` is -1 — aimed at `targets` (window-local points on or near the group; empty: the
+// group's own samples, see group_samples.h).
+struct WitnessSearch {
+    size_t object = 0;  // index into ChunkVerdicts::objects
+    int group = 0;
+    int light = -1;
+    std::vector<glm::dvec3> targets;
 };
 
 class RaycastStage : public Stage {
@@ -34,7 +47,14 @@ public:
     // over groups (TBB; call it inside the task arena that sets the thread count).
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
 
+    // A second, denser search where another stage says a witness may be (the pixels that
+    // passed the GPU confirmation): same witness test, other targets.
+    Status searchAt(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch> searches,
+                    StageStats& stats);
+
 private:
+    Status search(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch>& searches,
+                  StageStats& stats, const char* reason);
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };
