@@ -12,10 +12,12 @@
 #include <CLI/CLI.hpp>
 
 #include "cli/pipeline.h"
+#include "cli/check.h"
 #include "cli/diff.h"
 #include "cli/explain.h"
 #include "cli/report.h"
 #include "cli/sweep.h"
+#include "gpu/render.h"
 
 using namespace shadowcull;
 using namespace shadowcull::cli;
@@ -113,6 +115,8 @@ int main(int argc, char** argv) {
     sweep->add_option("--reference-samples", sweepOpt.referenceSamples, "Area samples of the reference bake")
         ->check(CLI::Range(1, 1 << 20));
     sweep->add_flag("--quick", sweepOpt.quick, "A shorter ladder");
+    bool noGpu = false;
+    sweep->add_flag("--no-gpu", noGpu, "Leave out the GPU settings");
 
     DiffOptions diffOpt;
     CLI::App* diff = app.add_subcommand("diff", "Bits that changed between two bakes (results JSON files or baked spaces)");
@@ -129,6 +133,28 @@ int main(int argc, char** argv) {
     explain->add_option("--res", explainOpt.resourceRoot, "Resource root");
     explain->add_option("--light", explainOpt.light, "Only this light (1-based)")->check(CLI::PositiveNumber);
 
+    CheckOptions checkOpt;
+    CLI::App* check = app.add_subcommand("check", "Cross-check the original GPU method against the analytic pipeline");
+    check->add_option("space", checkOpt.spaceDir, "Space directory")->required()->check(CLI::ExistingDirectory);
+    check->add_option("--res", checkOpt.resourceRoot, "Resource root");
+    check->add_option("--gpu-resolution", checkOpt.gpuResolution, "Pixels per side of each light view")
+        ->check(CLI::Range(16, 16384));
+    check->add_option("--pictures", checkOpt.outDir, "Directory for the light-view pictures (default: shadowcull-check)");
+    check->add_option("--threads", checkOpt.threads, "Worker threads")->check(CLI::NonNegativeNumber);
+
+    BakeOptions renderOpt;
+    std::string renderChunk, renderOut, renderMethod = "analytic";
+    int renderLight = 1;
+    CLI::App* render = app.add_subcommand("render", "Write a light's view of a chunk window, coloured by verdict (PNG)");
+    render->add_option("space", renderOpt.spaceDir, "Space directory")->required()->check(CLI::ExistingDirectory);
+    render->add_option("--chunk", renderChunk, "Chunk (XXXXZZZZo or XXXXZZZZo.chunk)")->required();
+    render->add_option("--light", renderLight, "Light (1-based)")->check(CLI::PositiveNumber);
+    render->add_option("--out", renderOut, "PNG file")->required();
+    render->add_option("--res", renderOpt.resourceRoot, "Resource root");
+    render->add_option("--gpu-resolution", renderOpt.gpuResolution, "Pixels per side")->check(CLI::Range(16, 16384));
+    render->add_option("--method", renderMethod, "Colour by the analytic verdicts (default) or the GPU method's")
+        ->check(CLI::IsMember({"analytic", "gpu"}));
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -144,9 +170,34 @@ int main(int argc, char** argv) {
     opt.gpuBaseline = method == "gpu";
     if (*bake) return runBakeCommand(opt, resultsPath, quiet);
     if (*diff) return runDiff(diffOpt, std::cout, std::cerr);
+    if (*check) return runCheck(checkOpt, std::cout, std::cerr);
+    if (*render) {
+        std::string file = renderChunk.size() == 9 ? renderChunk + ".chunk" : renderChunk;
+        std::optional<ChunkCoord> c = parseChunkName(file);
+        if (!c) {
+            std::fprintf(stderr, "shadowcull: error: %s: not a chunk name (XXXXZZZZo.chunk)\n", renderChunk.c_str());
+            return kExitUsage;
+        }
+        renderOpt.write = false;
+        renderOpt.gpuBaseline = renderMethod == "gpu";
+        Expected<ChunkBake> cb = bakeChunk(renderOpt, *c);
+        if (!cb) {
+            std::fprintf(stderr, "shadowcull: error: %s\n", cb.error().what().c_str());
+            return exitCodeFor(cb.error().kind);
+        }
+        if (Status s = gpu::renderLightView(cb->window, cb->verdicts, renderLight - 1, renderOpt.gpuResolution, renderOut); !s) {
+            std::fprintf(stderr, "shadowcull: error: %s\n", s.error().what().c_str());
+            return exitCodeFor(s.error().kind);
+        }
+        return kExitOk;
+    }
     if (*explain) return runExplain(explainOpt, std::cout, std::cerr);
     if (*sweep) {
-        Expected<std::vector<SweepRow>> rows = runSweep(sweepOpt, analyticLadder(sweepOpt.quick));
+        std::vector<SweepSetting> ladder = analyticLadder(sweepOpt.quick);
+        if (noGpu) ladder.erase(std::remove_if(ladder.begin(), ladder.end(), [](const SweepSetting& s) { return s.name.find("gpu") != std::string::npos || s.name.find("GPU") != std::string::npos; }), ladder.end());
+        else
+            for (SweepSetting& s : gpuBaselineLadder(sweepOpt.quick)) ladder.push_back(std::move(s));
+        Expected<std::vector<SweepRow>> rows = runSweep(sweepOpt, ladder);
         if (!rows) {
             std::fprintf(stderr, "shadowcull: error: %s\n", rows.error().what().c_str());
             return exitCodeFor(rows.error().kind);

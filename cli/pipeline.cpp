@@ -118,6 +118,78 @@ std::vector<ShadowWrite> shadowWrites(const ChunkVerdicts& cv) {
 
 }  // namespace
 
+StageRunner::StageRunner(const BakeOptions& opt)
+    : rays_(opt.raycast),
+      volumes_(opt.geometry),
+      confirm_(gpu::GpuConfirmOptions{opt.gpuResolution}),
+      baseline_(gpu::GpuBaselineOptions{opt.gpuResolution}) {
+    bool useGpu = opt.useGpu && !opt.gpuBaseline;
+    if (useGpu || opt.gpuBaseline) {
+        // The GPU passes need an OpenGL context; without one the confirmation is skipped
+        // (its bits stay undecided, kept) and the baseline cannot run at all.
+        Expected<std::unique_ptr<gpu::GlContext>> probe = gpu::createOffscreenContext(16, 16);
+        if (!probe) {
+            if (opt.gpuBaseline) status_ = probe.error();
+            notes_.push_back("gpu stage skipped: " + probe.error().message);
+            useGpu = false;
+        }
+    }
+    // Cheap to expensive; each stage skips what an earlier one decided. Witness rays come
+    // before shadow volumes: most bits of a real world are 1s, found after a few rays.
+    if (opt.gpuBaseline) {
+        stages_ = {&inputOnly_, &baseline_};
+    } else {
+        stages_ = {&reach_};
+        if (opt.useRaycast) stages_.push_back(&rays_);
+        if (opt.useGeometry) stages_.push_back(&volumes_);
+        if (useGpu) stages_.push_back(&confirm_);
+    }
+    densePass_ = useGpu && opt.useRaycast;
+}
+
+std::vector<StageTiming> StageRunner::timings() const {
+    std::vector<StageTiming> t;
+    for (Stage* s : stages_) t.push_back({s->name(), {}});
+    if (densePass_) t.push_back({"raycast (gpu pixels)", {}});
+    return t;
+}
+
+Status StageRunner::bake(const BakeWindow& window, ChunkVerdicts& cv, std::vector<StageTiming>& timings) {
+    for (size_t s = 0; s < stages_.size(); ++s) {
+        StageStats st;
+        if (Status status = stages_[s]->run(window, cv, st); !status) return status;
+        timings[s].stats.add(st);
+    }
+    if (densePass_) {
+        // The dense witness search where the GPU confirmation saw samples pass.
+        StageStats st;
+        if (Status status = rays_.searchAt(window, cv, denseSearches(confirm_.passedPixels(), cv), st); !status)
+            return status;
+        timings.back().stats.add(st);
+    }
+    return Status::ok();
+}
+
+Expected<ChunkBake> bakeChunk(const BakeOptions& opt, ChunkCoord chunk) {
+    std::vector<ChunkCoord> only{chunk};
+    Expected<Space> loaded = loadSpace(opt.spaceDir, opt.resourceRoot, &only);
+    if (!loaded) return loaded.error();
+    ChunkBake out;
+    out.space = std::make_unique<Space>(std::move(*loaded));
+    if (!out.space->chunks.count(chunk))
+        return makeError(ErrorKind::BadInput, (fs::path(opt.spaceDir) / chunkFileName(chunk)).string(), 0,
+                         "no such chunk file in the space");
+    StageRunner runner(opt);
+    if (!runner.status()) return runner.status().error();
+    out.window = buildWindow(*out.space, chunk, out.terrainMeshes);
+    out.verdicts = makeChunkVerdicts(*out.space, out.window);
+    out.stages = runner.timings();
+    if (Status s = runner.bake(out.window, out.verdicts, out.stages); !s) return s.error();
+    out.verdicts.simulated = simulatedEffects(out.window, out.verdicts);
+    out.notes = runner.notes();
+    return out;
+}
+
 Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
     const auto t0 = std::chrono::steady_clock::now();
     auto since = [](auto t) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count(); };
@@ -159,36 +231,10 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
     // 3. Bake every chunk; stage its new text in a temporary file beside the target.
     // Cheap to expensive; each stage skips what an earlier one decided. Witness rays come
     // before shadow volumes: most bits of a real world are 1s, found after a few rays.
-    ReachStage reach;
-    raycast::RaycastStage rays(opt.raycast);
-    geometry::GeometryStage volumes(opt.geometry);
-    gpu::GpuConfirmStage confirm(gpu::GpuConfirmOptions{opt.gpuResolution});
-    gpu::GpuBaselineMethod baseline(gpu::GpuBaselineOptions{opt.gpuResolution});
-    bool useGpu = opt.useGpu && !opt.gpuBaseline;
-    if (useGpu || opt.gpuBaseline) {
-        // The GPU passes need an OpenGL context; without one the confirmation is skipped
-        // (its bits stay undecided, kept) and the baseline cannot run at all.
-        Expected<std::unique_ptr<gpu::GlContext>> probe = gpu::createOffscreenContext(16, 16);
-        if (!probe) {
-            if (opt.gpuBaseline) return probe.error();
-            result.notes.push_back("gpu stage skipped: " + probe.error().message);
-            useGpu = false;
-        }
-    }
-    std::vector<Stage*> stages;
-    if (opt.gpuBaseline) {
-        stages = {&baseline};
-    } else {
-        stages = {&reach};
-        if (opt.useRaycast) stages.push_back(&rays);
-        if (opt.useGeometry) stages.push_back(&volumes);
-        if (useGpu) stages.push_back(&confirm);
-    }
-    // The dense witness search where the GPU confirmation saw samples pass.
-    const bool densePass = useGpu && opt.useRaycast;
-    result.stages.resize(stages.size() + (densePass ? 1 : 0));
-    for (size_t s = 0; s < stages.size(); ++s) result.stages[s].name = stages[s]->name();
-    if (densePass) result.stages.back().name = "raycast (gpu pixels)";
+    StageRunner runner(opt);
+    result.notes = runner.notes();
+    if (!runner.status()) return runner.status().error();
+    result.stages = runner.timings();
     std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>> terrainMeshes;
     struct Staged {
         std::string temp, target;
@@ -229,25 +275,11 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
         }
         BakeWindow window = buildWindow(space, targets[k], terrainMeshes);
         ChunkVerdicts cv = makeChunkVerdicts(space, window);
-        for (size_t s = 0; s < stages.size(); ++s) {
-            StageStats st;
-            if (Status status = stages[s]->run(window, cv, st); !status) {
-                discardStaged();
-                Error e = status.error();
-                if (e.file.empty()) e.file = cf.path;
-                return e;
-            }
-            result.stages[s].stats.add(st);
-        }
-        if (densePass) {
-            StageStats st;
-            if (Status status = rays.searchAt(window, cv, denseSearches(confirm.passedPixels(), cv), st); !status) {
-                discardStaged();
-                Error e = status.error();
-                if (e.file.empty()) e.file = cf.path;
-                return e;
-            }
-            result.stages.back().stats.add(st);
+        if (Status status = runner.bake(window, cv, result.stages); !status) {
+            discardStaged();
+            Error e = status.error();
+            if (e.file.empty()) e.file = cf.path;
+            return e;
         }
         cv.simulated = simulatedEffects(window, cv);
         if (opt.write) {

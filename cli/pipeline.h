@@ -11,6 +11,8 @@
 #include "core/stage.h"
 #include "core/verdict.h"
 #include "geometry/geometry_stage.h"
+#include "gpu/baseline.h"
+#include "gpu/confirm_stage.h"
 #include "raycast/raycast_stage.h"
 
 namespace shadowcull::cli {
@@ -63,6 +65,44 @@ struct BakeResult {
     int chunksResumed = 0;  // skipped by --resume: unchanged since the last bake
     std::vector<std::string> notes;  // what the bake did differently from what was asked
 };
+
+// The stages a bake runs, in order, made once per bake from its options (the GPU stages
+// need an OpenGL context: without one the confirmation is skipped with a note, and the
+// baseline method fails).
+class StageRunner {
+public:
+    explicit StageRunner(const BakeOptions& options);
+    const Status& status() const { return status_; }
+    const std::vector<std::string>& notes() const { return notes_; }
+    // One StageTiming per stage, in order (for `bake`'s accumulation).
+    std::vector<StageTiming> timings() const;
+    // Runs every stage on one window; adds each stage's stats to `timings`.
+    Status bake(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<StageTiming>& timings);
+
+private:
+    ReachStage reach_;
+    ReachStage inputOnly_{false};
+    raycast::RaycastStage rays_;
+    geometry::GeometryStage volumes_;
+    gpu::GpuConfirmStage confirm_;
+    gpu::GpuBaselineMethod baseline_;
+    std::vector<Stage*> stages_;
+    bool densePass_ = false;
+    Status status_;
+    std::vector<std::string> notes_;
+};
+
+// One chunk baked in memory (no file written), with its window for reports that look at
+// it again (render, check). The window points into `space`.
+struct ChunkBake {
+    std::unique_ptr<Space> space;
+    std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>> terrainMeshes;
+    BakeWindow window;
+    ChunkVerdicts verdicts;
+    std::vector<StageTiming> stages;
+    std::vector<std::string> notes;
+};
+Expected<ChunkBake> bakeChunk(const BakeOptions& options, ChunkCoord chunk);
 
 // Progress callback: (chunks done, chunks total).
 using Progress = std::function<void(size_t, size_t)>;

@@ -46,9 +46,30 @@ std::vector<SweepSetting> analyticLadder(bool quick) {
                                   BakeOptions o = base;
                                   o.raycast.areaSamples = n;
                                   o.useGeometry = geometry;
+                                  o.useGpu = false;
                                   return runBake(o);
                               }});
         }
+    const std::vector<int> confirm = quick ? std::vector<int>{512} : std::vector<int>{512, 1024, 2048};
+    for (int res : confirm)
+        ladder.push_back({"raycast+geometry+gpu, 256 samples, " + std::to_string(res) + " px", [res](const BakeOptions& base) {
+                              BakeOptions o = base;
+                              o.gpuResolution = res;
+                              return runBake(o);
+                          }});
+    return ladder;
+}
+
+std::vector<SweepSetting> gpuBaselineLadder(bool quick) {
+    std::vector<SweepSetting> ladder;
+    const std::vector<int> res = quick ? std::vector<int>{512, 1024} : std::vector<int>{512, 1024, 2048, 4096};
+    for (int r : res)
+        ladder.push_back({"original GPU method, " + std::to_string(r) + " px", [r](const BakeOptions& base) {
+                              BakeOptions o = base;
+                              o.gpuBaseline = true;
+                              o.gpuResolution = r;
+                              return runBake(o);
+                          }});
     return ladder;
 }
 
@@ -62,6 +83,7 @@ Expected<std::vector<SweepRow>> runSweep(const SweepOptions& options, const std:
     base.write = false;
 
     BakeOptions refOpt = base;
+    refOpt.gpuResolution = 2048;
     refOpt.raycast.areaSamples = options.referenceSamples;
     refOpt.raycast.maxFeatureSamples = 4 * options.referenceSamples;
     Expected<BakeResult> reference = runBake(refOpt);
@@ -102,7 +124,7 @@ int reportSweep(const SweepOptions& options, const std::vector<SweepRow>& rows, 
         out << "| " << r.setting << " | " << buf << " | " << r.bits << " | " << r.written0 << " | " << r.written1 << " | "
             << r.falseCulls << " | " << r.falseKeeps << " | " << r.referenceUndecided << " |\n";
     }
-    out << "\nReference: raycast+geometry at " << options.referenceSamples
+    out << "\nReference: every analytic stage (GPU confirmation at 2048 px) at " << options.referenceSamples
         << " samples per group. False cull: written 0 where the reference has a witness. False keep: written 1 where "
            "the reference proved 0. Bits the reference could not decide are counted apart.\n";
     if (!options.csvPath.empty()) {

@@ -37,9 +37,11 @@ struct SweepSetting {
     std::function<Expected<BakeResult>(const BakeOptions& base)> bake;
 };
 
-// The analytic settings: samples per group x stages. Other methods (the GPU baseline) add
-// theirs to the list before running.
+// The analytic settings: samples per group x stages (raycast; + geometry; + GPU
+// confirmation at several resolutions).
 std::vector<SweepSetting> analyticLadder(bool quick);
+// The original GPU method at 512..4096 px (needs an OpenGL context).
+std::vector<SweepSetting> gpuBaselineLadder(bool quick);
 
 // Runs every setting and the reference; rows in ladder order. The reference bake is moved
 // into `reference` when given.

@@ -76,6 +76,8 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
                     decide(d, Verdict::Culled, "input", "castsShadow is false");
                 } else if (gb.empty()) {
                     decide(d, Verdict::Culled, "input", "the group has no triangle with three distinct vertices");
+                } else if (!lightsReach_) {
+                    continue;
                 } else if (boxBeyondRange(L, gb)) {
                     decide(d, Verdict::Culled, name(),
                            "the group lies beyond the light's range (" + formatNumber(L.range) + " m)");

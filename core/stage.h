@@ -52,8 +52,14 @@ ChunkVerdicts makeChunkVerdicts(const Space& space, const BakeWindow& window);
 // are culled; everything else is left undecided.
 class ReachStage : public Stage {
 public:
+    // `lightsReach` false: only the input checks (castsShadow, no area), as the original
+    // GPU method honoured them; it decides range and cone itself.
+    explicit ReachStage(bool lightsReach = true) : lightsReach_(lightsReach) {}
     const char* name() const override { return "reach"; }
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
+
+private:
+    bool lightsReach_ = true;
 };
 
 // Lights that can reach any undecided group of the chunk: the others need no rays.

@@ -25,12 +25,12 @@
 //     touches S. A crack edge is one not shared by exactly two of P's triangles running it
 //     in opposite directions; P's triangles all face the same way, so across any other
 //     edge they lie on both sides, and the boundary of P's projected union lies on crack
-//     edges. S is connected and meets no boundary, so it lies wholly inside the union, the ray meets P within S, at a depth at
-//     most the maximum over P's triangles touching S of their farthest depth over S: that
-//     maximum (plus margins) is what P records, and D_occ is the minimum over sheets. The
-//     ray's hit on P is not before p (p is lit; ties are not blocking), so D_occ(S) >=
-//     depth(p) >= zlo(S). g's own triangles may be part of a sheet: p lit still holds.
-//     Alpha-tested groups are never part of a sheet.
+//     edges. S is connected and meets no boundary, so it lies wholly inside the union:
+//     the ray meets P within S, at a depth at most the maximum over P's triangles touching
+//     S of their farthest depth over S. That maximum (plus margins) is what P records, and
+//     D_occ is the minimum over sheets. No opaque hit on the ray comes before p (p is lit;
+//     ties do not block), so D_occ(S) >= depth(p) >= zlo(S). g's own triangles may be part
+//     of a sheet: the same holds. Alpha-tested groups are never part of a sheet.
 //  4. R_max(S) > zlo(S) + bias': q's triangle is a receiver triangle (faces the light or is
 //     two-sided, not wholly out of range, not wholly under the terrain), touches S and
 //     has a farthest depth over S of at least depth(q) > depth(p) + bias. In perspective,
@@ -43,9 +43,9 @@
 #include <algorithm>
 #include <chrono>
 #include <climits>
-#include <cstdint>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <cstring>
 #include <map>
 #include <numeric>

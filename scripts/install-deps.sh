@@ -6,7 +6,6 @@ packages=(
   libglm-dev libtinyxml2-dev libpng-dev libtbb-dev libembree-dev libcgal-dev
   libosmesa6-dev mesa-common-dev
   nlohmann-json3-dev libcli11-dev
-  libosmesa6-dev mesa-common-dev
   googletest libgtest-dev libbenchmark-dev
 )
 missing=()

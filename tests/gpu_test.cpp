@@ -188,15 +188,16 @@ SpaceBuilder rodBetweenPixelCentres() {
     return b;
 }
 
-// hiddenUnderRoof's cube and roof, lit by a point lamp or a spot torch 2.8 m above the
-// roof's middle: every ray from the light to the cube crosses the roof (which spans 10 m
-// around), so the cube is 0; the roof's shadow falls on the cube and the terrain: 1.
-SpaceBuilder lampOverRoof(bool spot) {
+// hiddenUnderRoof's cube and roof, lit by a point lamp or a spot torch (cone 40 degrees, one
+// view; or 80 degrees, six cube faces) 2.8 m above the roof's middle: every ray from the
+// light to the cube crosses the roof (which spans 10 m around), so the cube is 0; the
+// roof's shadow falls on the cube and the terrain: 1.
+SpaceBuilder lampOverRoof(bool spot, double cone = 40) {
     SpaceBuilder b;
     b.addMesh("cube", MeshSpec::box({0, 0, 0}, {1, 1, 1}));
     b.addMesh("roof", MeshSpec::box({-10, 0, -10}, {10, 0.2, 10}));
     b.addFlatTerrain(0, 0, 0.0);
-    if (spot) b.addLight(LightSpec::spot("torch", {50.5, 6, 50.5}, {0, -1, 0}, 30, 40));
+    if (spot) b.addLight(LightSpec::spot("torch", {50.5, 6, 50.5}, {0, -1, 0}, 30, cone));
     else b.addLight(LightSpec::point("lamp", {50.5, 6, 50.5}, 30));
     const std::string cube = b.addModel("cube", Affine::translation({50, 0, 50}), fixedUuid(1));
     const std::string roof = b.addModel("roof", Affine::translation({50.5, 3, 50.5}), fixedUuid(2));
@@ -224,6 +225,7 @@ const std::vector<NamedScene>& knownAnswerScenes() {
         {"rodBetweenPixelCentres", rodBetweenPixelCentres},
         {"lampOverRoof", [] { return lampOverRoof(false); }},
         {"torchOverRoof", [] { return lampOverRoof(true); }},
+        {"wideTorchOverRoof", [] { return lampOverRoof(true, 80); }},
     };
     return s;
 }
@@ -432,10 +434,11 @@ TEST(GpuConfirm, ProvesATrunkUnderAnOpaqueCanopyIsNeverLit) {
 
 TEST(GpuConfirm, ProvesNeverLitForPointAndSpotLights) {
     REQUIRE_GL();
-    for (bool spot : {false, true}) {
-        SCOPED_TRACE(spot ? "spot" : "point");
-        std::unique_ptr<Loaded> l = load(lampOverRoof(spot), spot ? "spot" : "point");
+    for (const double cone : {0.0, 40.0, 80.0}) {  // 0: a point light
+        SCOPED_TRACE(cone);
+        std::unique_ptr<Loaded> l = load(lampOverRoof(cone > 0, cone), std::to_string(int(cone)));
         ASSERT_TRUE(l);
+        EXPECT_EQ(gpu::lightViews(l->window, l->window.lsLights[0], 8).size(), cone == 40.0 ? 1u : 6u);
         gpu::GpuConfirmStage stage({128});
         runStage(stage, *l);
         expectNeverLit(l->at(fixedUuid(1), 0, 0));

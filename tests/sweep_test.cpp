@@ -28,7 +28,7 @@ TEST(Sweep, ReferenceAgreesWithKnownAnswersAndLadderNeverCullsFalsely) {
         cli::BakeResult reference;
         Expected<std::vector<cli::SweepRow>> rows = cli::runSweep(opt, cli::analyticLadder(true), &reference);
         ASSERT_TRUE(rows) << rows.error().what();
-        ASSERT_EQ(rows->size(), 4u);
+        ASSERT_EQ(rows->size(), 5u);
         for (const cli::SweepRow& r : *rows) EXPECT_EQ(r.falseCulls, 0u) << r.setting;
 
         auto where = b.locateObjects();
@@ -50,7 +50,7 @@ TEST(Sweep, ReferenceAgreesWithKnownAnswersAndLadderNeverCullsFalsely) {
         EXPECT_EQ(cli::reportSweep(opt, *rows, out, err), 0) << err.str();
         EXPECT_NE(out.str().find("| raycast+geometry, 256 samples |"), std::string::npos) << out.str();
         const std::string csv = readText(opt.csvPath);
-        EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5);
+        EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 6);
         const std::string svg = readText(opt.svgPath);
         EXPECT_NE(svg.find("<svg"), std::string::npos);
         EXPECT_NE(svg.find("<circle"), std::string::npos);

@@ -1,0 +1,115 @@
+#include "cli/check.h"
+
+#include <filesystem>
+#include <map>
+#include <set>
+
+#include "cli/pipeline.h"
+#include "core/format.h"
+#include "gpu/render.h"
+
+namespace fs = std::filesystem;
+
+namespace shadowcull::cli {
+
+namespace {
+
+std::string vec(const glm::dvec3& v) {
+    return "(" + formatNumber(v.x) + " " + formatNumber(v.y) + " " + formatNumber(v.z) + ")";
+}
+
+std::string objectName(const ObjectVerdicts& ov) {
+    std::string s = (ov.terrain ? "terrain #" : "model #") + std::to_string(ov.elementIndex);
+    if (!ov.uuid.empty()) s += " (" + ov.uuid + ")";
+    return s;
+}
+
+}  // namespace
+
+int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) {
+    BakeOptions analytic;
+    analytic.spaceDir = options.spaceDir;
+    analytic.resourceRoot = options.resourceRoot;
+    analytic.threads = options.threads;
+    analytic.raycast.threads = options.threads;
+    analytic.gpuResolution = options.gpuResolution;
+    analytic.write = false;
+    BakeOptions original = analytic;
+    original.gpuBaseline = true;
+
+    Expected<BakeResult> a = runBake(analytic);
+    if (!a) {
+        err << "shadowcull: error: " << a.error().what() << "\n";
+        return exitCodeFor(a.error().kind);
+    }
+    Expected<BakeResult> g = runBake(original);
+    if (!g) {
+        err << "shadowcull: error: " << g.error().what() << "\n";
+        return exitCodeFor(g.error().kind);
+    }
+
+    uint64_t bits = 0, falseCulls = 0, falseKeeps = 0, undecided = 0;
+    std::set<std::pair<ChunkCoord, int>> pictures;  // (chunk, light) with a disagreement
+    std::string lines;
+    for (size_t c = 0; c < a->chunks.size() && c < g->chunks.size(); ++c) {
+        const ChunkVerdicts& av = a->chunks[c];
+        const ChunkVerdicts& gv = g->chunks[c];
+        for (size_t oi = 0; oi < av.objects.size(); ++oi) {
+            const ObjectVerdicts& ov = av.objects[oi];
+            for (int grp = 0; grp < ov.groupCount; ++grp)
+                for (int l = 0; l < av.lightCount; ++l) {
+                    ++bits;
+                    const Decision& ad = av.at(oi, grp, l);
+                    const Decision& gd = gv.at(oi, grp, l);
+                    const bool gpuOne = gd.verdict != Verdict::Culled;
+                    std::string kind, evidence;
+                    if (!gpuOne && ad.verdict == Verdict::Kept) {
+                        ++falseCulls;
+                        kind = "GPU false cull";
+                        evidence = "witness: origin " + vec(ad.witness->wsOrigin) + " direction " + vec(ad.witness->wsDirection) +
+                                   ", p " + vec(ad.witness->wsP) + ", q " + vec(ad.witness->wsQ) + " on " + ad.witness->receiver;
+                    } else if (gpuOne && ad.verdict == Verdict::Culled) {
+                        ++falseKeeps;
+                        kind = "GPU false keep";
+                        evidence = "proof (" + ad.stage + "): " + ad.reason;
+                    } else if (ad.verdict == Verdict::Undecided) {
+                        ++undecided;
+                        if (gpuOne) continue;  // both write 1: nothing to look at
+                        kind = "undecided";
+                        evidence = "the analytic pipeline could not decide; the GPU method culled it (" + gd.reason + ")";
+                    } else {
+                        continue;
+                    }
+                    pictures.insert({av.coord, l});
+                    lines += "  " + chunkFileName(av.coord) + "  " + objectName(ov) + "  group " + std::to_string(grp) +
+                             "  light " + std::to_string(l + 1) + " '" + a->settings.lights[size_t(l)].name + "': " + kind +
+                             " (GPU " + (gpuOne ? "1" : "0") + ", analytic " + verdictName(ad.verdict) + ")\n      " +
+                             evidence + "\n";
+                }
+        }
+    }
+    out << "bits " << bits << "; GPU method at " << options.gpuResolution << ": " << falseCulls << " false culls, "
+        << falseKeeps << " false keeps; " << undecided << " bits undecided by the analytic pipeline\n";
+    if (!lines.empty()) out << "disagreements:\n" << lines;
+
+    if (options.pictures && !pictures.empty()) {
+        std::error_code ec;
+        fs::create_directories(options.outDir, ec);
+        for (const auto& [coord, light] : pictures) {
+            Expected<ChunkBake> cb = bakeChunk(analytic, coord);
+            if (!cb) {
+                err << "shadowcull: error: " << cb.error().what() << "\n";
+                return exitCodeFor(cb.error().kind);
+            }
+            const std::string png = (fs::path(options.outDir) / (chunkFileName(coord) + "-light" + std::to_string(light + 1) + ".png")).string();
+            if (Status s = gpu::renderLightView(cb->window, cb->verdicts, light, options.gpuResolution, png); !s) {
+                err << "shadowcull: error: " << s.error().what() << "\n";
+                return exitCodeFor(s.error().kind);
+            }
+            out << "picture: " << png << "\n";
+        }
+    }
+    return falseCulls ? 1 : 0;
+}
+
+}  // namespace shadowcull::cli
