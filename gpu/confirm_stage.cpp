@@ -4,8 +4,9 @@
 // O. Mattausch, A. Silvennoinen, M. Wimmer, "Shadow Caster Culling for Efficient Shadow
 // Mapping", I3D 2011) - draw the receivers' depth and count, then query each caster. Here
 // every per-pixel quantity is a bound instead of a sample, so that "no sample passed" is a
-// proof. Conservative rasterisation (over-estimation by the half pixel diagonal in a
-// geometry shader, and depth bounds from the triangle's plane over the pixel square)
+// proof. Conservative rasterisation (over-estimation by the half pixel diagonal: a quad
+// per triangle and a separating-axis test per pixel; depth bounds from the triangle's
+// plane over the pixel square)
 // follows J. Hasselgren, T. Akenine-Moller, L. Ohlsson, "Conservative Rasterization",
 // GPU Gems 2, ch. 42, 2005.
 //
@@ -14,9 +15,9 @@
 // through some pixel square S of some view (views of a light cover every ray that can
 // reach a point within range and cone; pixel squares are closed, so a ray on a border
 // belongs to both pixels and to both cube faces). Then at S:
-//  1. g's fragment exists: S touches p's triangle, and the geometry shader's quad with the
-//     fragment shader's separating-axis test admits every pixel whose square (widened by
-//     a margin above float rounding) touches the triangle.
+//  1. g's fragment exists: S touches p's triangle, and the quad drawn for the triangle with
+//     the fragment shader's separating-axis test admits every pixel whose square (widened
+//     by a margin above float rounding) touches the triangle.
 //  2. zlo(S) <= depth(p): zlo is the minimum over S of the triangle's depth plane (an
 //     affine function of pixel position: the depth itself orthographically, 1/z in
 //     perspective), clamped by the vertices' depth range, minus margins.
@@ -64,8 +65,9 @@ namespace {
 
 constexpr float kBig = 1e30f;
 
-// One point per piece; the geometry shader turns it into the quad that covers every pixel
-// the (widened) piece can touch, clamped to the view.
+// One instance per piece: the vertex shader places the four corners of the shape that
+// covers every pixel the (widened) piece can touch (conservative.h: cover). A geometry
+// shader could build it per point, but llvmpipe runs instanced strips several times faster.
 const char* kRasterVs = R"(#version 430 core
 layout(location = 0) in vec4 aBox;
 layout(location = 1) in vec4 aE0;
@@ -75,31 +77,8 @@ layout(location = 4) in vec4 aPlane;
 layout(location = 5) in vec4 aPlane2;
 layout(location = 6) in vec4 aMisc;
 layout(location = 7) in uint aId;
-out vec4 gBox;
-out vec4 gE0;
-out vec4 gE1;
-out vec4 gE2;
-out vec4 gPlane;
-out vec4 gPlane2;
-out vec4 gMisc;
-flat out uint gId;
-void main() {
-    gBox = aBox; gE0 = aE0; gE1 = aE1; gE2 = aE2; gPlane = aPlane; gPlane2 = aPlane2; gMisc = aMisc; gId = aId;
-    gl_Position = vec4(0.0, 0.0, 0.0, 1.0);
-}
-)";
-
-const char* kRasterGs = R"(#version 430 core
-layout(points) in;
-layout(triangle_strip, max_vertices = 4) out;
-in vec4 gBox[];
-in vec4 gE0[];
-in vec4 gE1[];
-in vec4 gE2[];
-in vec4 gPlane[];
-in vec4 gPlane2[];
-in vec4 gMisc[];
-flat in uint gId[];
+layout(location = 8) in vec4 aCover01;
+layout(location = 9) in vec4 aCover23;
 flat out vec4 fBox;
 flat out vec4 fE0;
 flat out vec4 fE1;
@@ -109,24 +88,10 @@ flat out vec4 fPlane2;
 flat out vec4 fMisc;
 flat out uint fId;
 uniform vec2 uSize;
-void corner(vec2 c) {
-    fBox = gBox[0]; fE0 = gE0[0]; fE1 = gE1[0]; fE2 = gE2[0];
-    fPlane = gPlane[0]; fPlane2 = gPlane2[0]; fMisc = gMisc[0]; fId = gId[0];
-    gl_Position = vec4(c / uSize * 2.0 - 1.0, 0.0, 1.0);
-    EmitVertex();
-}
 void main() {
-    // Half a pixel (the square's half side) + dilation + margin, and 0.01 px so that
-    // centres on the quad's edge are not lost to the rasteriser's tie rule.
-    float h = 0.5 + gMisc[0].x + gMisc[0].y + 0.01;
-    vec2 lo = max(gBox[0].xy - h, vec2(0.0));
-    vec2 hi = min(gBox[0].zw + h, uSize);
-    if (lo.x >= hi.x || lo.y >= hi.y) return;
-    corner(lo);
-    corner(vec2(hi.x, lo.y));
-    corner(vec2(lo.x, hi.y));
-    corner(hi);
-    EndPrimitive();
+    fBox = aBox; fE0 = aE0; fE1 = aE1; fE2 = aE2; fPlane = aPlane; fPlane2 = aPlane2; fMisc = aMisc; fId = aId;
+    vec2 c = gl_VertexID == 0 ? aCover01.xy : gl_VertexID == 1 ? aCover01.zw : gl_VertexID == 2 ? aCover23.xy : aCover23.zw;
+    gl_Position = vec4(c / uSize * 2.0 - 1.0, 0.0, 1.0);
 }
 )";
 
@@ -246,14 +211,14 @@ void main() {
 }
 )";
 
-const char* kResolveVs = R"(#version 430 core
-void main() {
-    vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);
-    gl_Position = vec4(p, 0.0, 1.0);
-}
+// The sheets' pixel rectangles, as two triangles each (pixel coordinates).
+const char* kRectVs = R"(#version 430 core
+layout(location = 0) in vec2 aPix;
+uniform vec2 uSize;
+void main() { gl_Position = vec4(aPix / uSize * 2.0 - 1.0, 0.0, 1.0); }
 )";
 
-// A sheet's pixel counts when its centre was robustly inside and no crack touched it.
+// A sheet's pixel counts when a point of it was robustly inside and no crack touched it.
 const char* kResolveFs = R"(#version 430 core
 layout(binding = 0) uniform sampler2D uWork;
 layout(location = 0) out vec4 oValue;
@@ -262,6 +227,12 @@ void main() {
     if (v.g < 0.5 || v.r >= 1e29) discard;
     oValue = vec4(v.r, 0.0, 0.0, 1.0);
 }
+)";
+
+// Resets the work buffer where a batch drew (no blending).
+const char* kClearFs = R"(#version 430 core
+layout(location = 0) out vec4 oValue;
+void main() { oValue = vec4(-1e30, 0.0, 0.0, 0.0); }
 )";
 
 struct UnionFind {
@@ -307,7 +278,7 @@ struct PixelRect {
 };
 
 // The pixels a piece's fragments can reach: those whose square, widened by the piece's
-// dilation and margin, meets its bounding box (the geometry shader's quad), clamped to the
+// dilation and margin, meets its bounding box (which holds the shape drawn), clamped to the
 // view, with a pixel to spare.
 PixelRect reachOf(const RasterPiece& r, const LightView& v) {
     const double h = 0.5 + double(r.misc[0]) + double(r.misc[1]) + 0.01 + 1.0;
@@ -317,10 +288,88 @@ PixelRect reachOf(const RasterPiece& r, const LightView& v) {
             int(std::clamp(std::ceil(hx), 0.0, double(v.width))), int(std::clamp(std::ceil(hy), 0.0, double(v.height)))};
 }
 
-// Drops the pieces that cannot touch a pixel of `roi`.
-void keepTouching(std::vector<RasterPiece>& pieces, const PixelRect& roi, const LightView& v) {
-    pieces.erase(std::remove_if(pieces.begin(), pieces.end(),
-                                [&](const RasterPiece& r) { return !reachOf(r, v).overlaps(roi); }),
+// The pixels the casters can reach, on a grid of 8 x 8 pixel cells, with a summed-area
+// table so that "does this rectangle meet a marked cell" is O(1), and per cell the depth
+// range of the casters there. The other passes are read only at the casters' pixels:
+// pieces that cannot touch a marked cell are dropped, and so are receivers that lie
+// nowhere behind a caster and occluder sheets that lie nowhere in front of one.
+class CellMask {
+public:
+    CellMask(int width, int height, bool all)
+        : nx_((width + kCell - 1) / kCell), ny_((height + kCell - 1) / kCell),
+          sum_(size_t(nx_ + 1) * size_t(ny_ + 1), 0), marked_(size_t(nx_) * size_t(ny_), all ? 1 : 0),
+          zmin_(marked_.size(), all ? -1e300 : 1e300), zmax_(marked_.size(), all ? 1e300 : -1e300) {}
+    void mark(const PixelRect& r, double zmin, double zmax) {
+        if (r.isEmpty()) return;
+        for (int y = r.y0 / kCell; y <= (r.y1 - 1) / kCell && y < ny_; ++y)
+            for (int x = r.x0 / kCell; x <= (r.x1 - 1) / kCell && x < nx_; ++x) {
+                const size_t k = size_t(y) * size_t(nx_) + size_t(x);
+                marked_[k] = 1;
+                zmin_[k] = std::min(zmin_[k], zmin);
+                zmax_[k] = std::max(zmax_[k], zmax);
+            }
+    }
+    void finish() {
+        for (int y = 0; y < ny_; ++y)
+            for (int x = 0; x < nx_; ++x)
+                at(x + 1, y + 1) = marked_[size_t(y) * size_t(nx_) + size_t(x)] + at(x, y + 1) + at(x + 1, y) - at(x, y);
+    }
+    bool touches(const PixelRect& r) const {
+        int x0, y0, x1, y1;
+        if (!cells(r, x0, y0, x1, y1)) return false;
+        return at(x1, y1) - at(x0, y1) - at(x1, y0) + at(x0, y0) > 0;
+    }
+    // The casters' depth range over the marked cells of r (for large r, everything).
+    void depthRange(const PixelRect& r, double& zmin, double& zmax) const {
+        zmin = 1e300, zmax = -1e300;
+        int x0, y0, x1, y1;
+        if (!cells(r, x0, y0, x1, y1)) return;
+        if (int64_t(x1 - x0) * int64_t(y1 - y0) > 1024) {
+            zmin = -1e300, zmax = 1e300;
+            return;
+        }
+        for (int y = y0; y < y1; ++y)
+            for (int x = x0; x < x1; ++x) {
+                const size_t k = size_t(y) * size_t(nx_) + size_t(x);
+                if (!marked_[k]) continue;
+                zmin = std::min(zmin, zmin_[k]);
+                zmax = std::max(zmax, zmax_[k]);
+            }
+    }
+
+private:
+    static constexpr int kCell = 8;
+    bool cells(const PixelRect& r, int& x0, int& y0, int& x1, int& y1) const {
+        if (r.isEmpty()) return false;
+        x0 = r.x0 / kCell, y0 = r.y0 / kCell;
+        x1 = std::min(nx_, (r.x1 - 1) / kCell + 1), y1 = std::min(ny_, (r.y1 - 1) / kCell + 1);
+        return x0 < x1 && y0 < y1;
+    }
+    uint32_t& at(int x, int y) { return sum_[size_t(y) * size_t(nx_ + 1) + size_t(x)]; }
+    uint32_t at(int x, int y) const { return sum_[size_t(y) * size_t(nx_ + 1) + size_t(x)]; }
+    int nx_, ny_;
+    std::vector<uint32_t> sum_;
+    std::vector<uint8_t> marked_;
+    std::vector<double> zmin_, zmax_;
+};
+
+// Drops the pieces that cannot touch a cell the casters reach, and with `behindOnly`
+// (receivers) those whose farthest depth cannot exceed the nearest caster depth there by
+// the bias: they can never pass the query's test. `depthEps` is the shader's absolute
+// depth margin; the relative terms cover its relative margin and float rounding, twice.
+void keepTouching(std::vector<RasterPiece>& pieces, size_t from, const CellMask& mask, const LightView& v,
+                  bool behindOnly = false, double bias = 0, double depthEps = 0) {
+    pieces.erase(std::remove_if(pieces.begin() + std::ptrdiff_t(from), pieces.end(),
+                                [&](const RasterPiece& r) {
+                                    const PixelRect reach = reachOf(r, v);
+                                    if (!mask.touches(reach)) return true;
+                                    if (!behindOnly) return false;
+                                    double zmin, zmax;
+                                    mask.depthRange(reach, zmin, zmax);
+                                    const double far = double(r.plane2[2]);
+                                    return far + 2 * depthEps + 1e-5 * std::abs(far) <
+                                           zmin - 2 * depthEps - 1e-5 * std::abs(zmin) + bias;
+                                }),
                  pieces.end());
 }
 
@@ -328,9 +377,9 @@ void keepTouching(std::vector<RasterPiece>& pieces, const PixelRect& roi, const 
 
 struct GpuConfirmStage::Gl {
     std::unique_ptr<GlSession> session;
-    GLuint raster = 0, resolve = 0;
+    GLuint raster = 0, resolve = 0, clear = 0;
     RenderTarget work, occ, recv;
-    GLuint vao = 0, vbo = 0, emptyVao = 0;
+    GLuint vao = 0, vbo = 0, rectVao = 0, rectVbo = 0;
     GLuint ssbo[2] = {0, 0};
     GLint64 maxStorageBlock = 0;  // bytes, GL_MAX_SHADER_STORAGE_BLOCK_SIZE
 };
@@ -363,12 +412,15 @@ Status GpuConfirmStage::ensureGl() {
     if (res > maxSize)
         return makeError(ErrorKind::Internal, "", 0,
                          "GPU resolution " + std::to_string(res) + " exceeds the texture limit " + std::to_string(maxSize));
-    Expected<GLuint> raster = gl.program(kRasterVs, kRasterGs, kRasterFs);
+    Expected<GLuint> raster = gl.program(kRasterVs, nullptr, kRasterFs);
     if (!raster) return raster.error();
     g->raster = *raster;
-    Expected<GLuint> resolve = gl.program(kResolveVs, nullptr, kResolveFs);
+    Expected<GLuint> resolve = gl.program(kRectVs, nullptr, kResolveFs);
     if (!resolve) return resolve.error();
     g->resolve = *resolve;
+    Expected<GLuint> clear = gl.program(kRectVs, nullptr, kClearFs);
+    if (!clear) return clear.error();
+    g->clear = *clear;
     Expected<RenderTarget> work = makeRenderTarget(gl, res, res, {GL_RG32F}, false);
     if (!work) return work.error();
     g->work = *work;
@@ -379,7 +431,12 @@ Status GpuConfirmStage::ensureGl() {
     if (!recv) return recv.error();
     g->recv = *recv;
     gl.GenVertexArrays(1, &g->vao);
-    gl.GenVertexArrays(1, &g->emptyVao);
+    gl.GenVertexArrays(1, &g->rectVao);
+    gl.GenBuffers(1, &g->rectVbo);
+    gl.BindVertexArray(g->rectVao);
+    gl.BindBuffer(GL_ARRAY_BUFFER, g->rectVbo);
+    gl.EnableVertexAttribArray(0);
+    gl.VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 2 * sizeof(float), nullptr);
     gl.GenBuffers(1, &g->vbo);
     gl.BindVertexArray(g->vao);
     gl.BindBuffer(GL_ARRAY_BUFFER, g->vbo);
@@ -387,9 +444,17 @@ Status GpuConfirmStage::ensureGl() {
     for (GLuint k = 0; k < 7; ++k) {
         gl.EnableVertexAttribArray(k);
         gl.VertexAttribPointer(k, 4, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(size_t(16 * k)));
+        gl.VertexAttribDivisor(k, 1);
     }
     gl.EnableVertexAttribArray(7);
     gl.VertexAttribIPointer(7, 1, GL_UNSIGNED_INT, stride, reinterpret_cast<const void*>(offsetof(RasterPiece, id)));
+    gl.VertexAttribDivisor(7, 1);
+    for (GLuint k = 8; k < 10; ++k) {
+        gl.EnableVertexAttribArray(k);
+        gl.VertexAttribPointer(k, 4, GL_FLOAT, GL_FALSE, stride,
+                               reinterpret_cast<const void*>(offsetof(RasterPiece, cover) + 16 * (k - 8)));
+        gl.VertexAttribDivisor(k, 1);
+    }
     gl.BindVertexArray(0);
     gl.GenBuffers(2, g->ssbo);
     GLint maxBlock = 0;
@@ -588,9 +653,14 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     for (size_t vi = 0; vi < views.size(); ++vi) {
         const LightView& view = views[vi];
         const PieceBuilder pb(view, nearZ);
+        // Absolute depth margin (metres): far above float rounding of the view's depths.
+        const double depthScale = persp ? L.range + glm::length(w.lsBounds.max - w.lsBounds.min) +
+                                              glm::length(L.position - 0.5 * (w.lsBounds.min + w.lsBounds.max))
+                                        : (view.w1 - view.w0);
+        const double depthEps = 1e-6 * depthScale + 1e-6;
         // Casters first: the query reads the other passes only at the casters' pixels, so
-        // everything is drawn within that rectangle alone (scissor), and pieces that cannot
-        // touch it are dropped. Pixels outside it are never read.
+        // everything is drawn within their bounding rectangle (scissor), and pieces that
+        // cannot touch a cell the casters reach are dropped. Other pixels are never read.
         std::vector<RasterPiece> casterPieces;
         for (const Caster& c : casters) {
             const auto& tri = w.objects[c.object].mesh->triangles[c.triangle];
@@ -598,11 +668,16 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
                         casterPieces);
         }
         PixelRect roi{0, 0, view.width, view.height};
+        CellMask mask(view.width, view.height, options_.collectViewStats);
         if (!options_.collectViewStats) {
             if (casterPieces.empty()) continue;  // the bit's group is not in this view
             roi = PixelRect::empty();
-            for (const RasterPiece& r : casterPieces) roi.add(reachOf(r, view));
+            for (const RasterPiece& r : casterPieces) {
+                roi.add(reachOf(r, view));
+                mask.mark(reachOf(r, view), double(r.plane2[1]), double(r.plane2[2]));
+            }
         }
+        mask.finish();
         // Occluder sheets, each with the pixel rectangle its fragments can reach.
         struct SheetPieces {
             std::vector<RasterPiece> pieces;
@@ -616,17 +691,24 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
                 pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]), 0.0f,
                             0, p.pieces);
             }
-            keepTouching(p.pieces, roi, view);
-            if (p.pieces.empty()) continue;  // no triangle of the sheet reaches the rectangle
+            keepTouching(p.pieces, 0, mask, view);
+            if (p.pieces.empty()) continue;  // no triangle of the sheet reaches the casters
             for (const TriRef& cr : s.cracks) {
                 const auto& ends = work.edges[w.objects[cr.object].mesh]->ends[cr.triangle];
                 pb.segment(position(cr.object, ends[0]), position(cr.object, ends[1]), p.pieces);
             }
-            keepTouching(p.pieces, roi, view);
+            keepTouching(p.pieces, 0, mask, view);
             p.rect = PixelRect::empty();
             for (const RasterPiece& r : p.pieces) p.rect.add(reachOf(r, view));
             p.rect = p.rect.intersect(roi);
             if (p.rect.isEmpty()) continue;
+            // A sheet wholly behind every caster it overlaps blocks none of them; leaving an
+            // occluder out only ever admits more.
+            double sheetNear = 1e300, casterFar, casterNear;
+            for (const RasterPiece& r : p.pieces)
+                if (r.misc[2] == 0.0f) sheetNear = std::min(sheetNear, double(r.plane2[1]));
+            mask.depthRange(p.rect, casterNear, casterFar);
+            if (sheetNear > casterFar + 1e-3 * (1 + std::abs(casterFar))) continue;
             sp.push_back(std::move(p));
         }
         // Batches: sheets whose rectangles are disjoint cannot touch the same pixel, so
@@ -650,11 +732,18 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
             if (!placed) batches.push_back({s});
         }
         std::vector<RasterPiece> all;
-        std::vector<std::pair<GLint, GLsizei>> batchRange;
+        std::vector<std::pair<GLint, GLsizei>> batchRange, batchRects;  // pieces; rectangle vertices
+        std::vector<float> rects;
         for (const auto& b : batches) {
-            const GLint first = GLint(all.size());
-            for (size_t s : b) all.insert(all.end(), sp[s].pieces.begin(), sp[s].pieces.end());
+            const GLint first = GLint(all.size()), firstRect = GLint(rects.size() / 2);
+            for (size_t s : b) {
+                all.insert(all.end(), sp[s].pieces.begin(), sp[s].pieces.end());
+                const PixelRect& r = sp[s].rect;
+                const float x0 = float(r.x0), y0 = float(r.y0), x1 = float(r.x1), y1 = float(r.y1);
+                rects.insert(rects.end(), {x0, y0, x1, y0, x1, y1, x0, y0, x1, y1, x0, y1});
+            }
             batchRange.push_back({first, GLsizei(all.size()) - first});
+            batchRects.push_back({firstRect, GLsizei(rects.size() / 2) - firstRect});
         }
         float dilatePx = 0.0f;
         if (!persp && L.filterRadius > 0)
@@ -666,8 +755,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
             const size_t before = all.size();
             pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]),
                         dilatePx, 0, all);
-            for (size_t k = all.size(); k-- > before;)
-                if (!reachOf(all[k], view).overlaps(roi)) all.erase(all.begin() + std::ptrdiff_t(k));
+            keepTouching(all, before, mask, view, !anyReceiver, biasEff, depthEps);
         }
         const GLint castFirst = GLint(all.size());
         all.insert(all.end(), casterPieces.begin(), casterPieces.end());
@@ -676,20 +764,26 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         // Upload and draw.
         gl.BindBuffer(GL_ARRAY_BUFFER, gl_->vbo);
         gl.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(all.size() * sizeof(RasterPiece)), all.data(), GL_STREAM_DRAW);
+        gl.BindBuffer(GL_ARRAY_BUFFER, gl_->rectVbo);
+        gl.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(rects.size() * sizeof(float)), rects.data(), GL_STREAM_DRAW);
+        for (GLuint p : {gl_->resolve, gl_->clear}) {
+            gl.UseProgram(p);
+            gl.Uniform2f(gl.uniform(p, "uSize"), float(view.width), float(view.height));
+        }
         const GLuint prog = gl_->raster;
         gl.UseProgram(prog);
         gl.Uniform2f(gl.uniform(prog, "uSize"), float(view.width), float(view.height));
         gl.Uniform1f(gl.uniform(prog, "uSizeMax"), float(std::max(view.width, view.height)));
         gl.Uniform1i(gl.uniform(prog, "uPerspective"), persp ? 1 : 0);
-        const double depthScale = persp ? L.range + glm::length(w.lsBounds.max - w.lsBounds.min) +
-                                              glm::length(L.position - 0.5 * (w.lsBounds.min + w.lsBounds.max))
-                                        : (view.w1 - view.w0);
-        gl.Uniform1f(gl.uniform(prog, "uDepthEps"), float(1e-6 * depthScale + 1e-6));
+        gl.Uniform1f(gl.uniform(prog, "uDepthEps"), float(depthEps));
         gl.Uniform1f(gl.uniform(prog, "uBias"), float(biasEff));
         gl.Uniform1i(gl.uniform(prog, "uAnyReceiver"), anyReceiver ? 1 : 0);
         gl.Uniform1ui(gl.uniform(prog, "uRecordCap"), cap);
         gl.Uniform1ui(gl.uniform(prog, "uView"), uint32_t(vi));
         const GLint uMode = gl.uniform(prog, "uMode");
+        auto drawPieces = [&](GLint first, GLsizei count) {
+            if (count > 0) gl.DrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, count, GLuint(first));
+        };
         gl.Viewport(0, 0, view.width, view.height);
         gl.Enable(GL_SCISSOR_TEST);
         gl.Scissor(roi.x0, roi.y0, roi.x1 - roi.x0, roi.y1 - roi.y0);
@@ -700,26 +794,38 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.BlendFunc(GL_ONE, GL_ONE);
 
         // 1. Occluders: D_occ = min over sheets of the sheet's bound, where it is valid.
+        // Per batch: draw its sheets into the work buffer (max), resolve their rectangles
+        // into D_occ (min), and reset those rectangles for the next batch.
         gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->occ.fbo);
         const float far[4] = {kBig, 0, 0, 0};
         gl.ClearBufferfv(GL_COLOR, 0, far);
-        for (const auto& [first, count] : batchRange) {
+        gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->work.fbo);
+        const float none[4] = {-kBig, 0, 0, 0};
+        gl.ClearBufferfv(GL_COLOR, 0, none);
+        for (size_t b = 0; b < batchRange.size(); ++b) {
             gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->work.fbo);
-            const float none[4] = {-kBig, 0, 0, 0};
-            gl.ClearBufferfv(GL_COLOR, 0, none);
+            gl.Enable(GL_BLEND);
             gl.BlendEquation(GL_MAX);
             gl.UseProgram(prog);
             gl.Uniform1i(uMode, 0);
             gl.BindVertexArray(gl_->vao);
-            gl.DrawArrays(GL_POINTS, first, count);
+            drawPieces(batchRange[b].first, batchRange[b].second);
             gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->occ.fbo);
             gl.BlendEquation(GL_MIN);
             gl.UseProgram(gl_->resolve);
             gl.ActiveTexture(GL_TEXTURE0);
             gl.BindTexture(GL_TEXTURE_2D, gl_->work.colour[0]);
-            gl.BindVertexArray(gl_->emptyVao);
-            gl.DrawArrays(GL_TRIANGLES, 0, 3);
+            gl.BindVertexArray(gl_->rectVao);
+            gl.DrawArrays(GL_TRIANGLES, batchRects[b].first, batchRects[b].second);
+            gl.BindTexture(GL_TEXTURE_2D, 0);
+            if (b + 1 < batchRange.size()) {
+                gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->work.fbo);
+                gl.Disable(GL_BLEND);
+                gl.UseProgram(gl_->clear);
+                gl.DrawArrays(GL_TRIANGLES, batchRects[b].first, batchRects[b].second);
+            }
         }
+        gl.Enable(GL_BLEND);
         // 2. Receivers: R_max = max over receiver triangles of their farthest depth.
         gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->recv.fbo);
         const float nothing[4] = {-kBig, 0, 0, 0};
@@ -728,7 +834,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.UseProgram(prog);
         gl.Uniform1i(uMode, 1);
         gl.BindVertexArray(gl_->vao);
-        if (castFirst > recvFirst) gl.DrawArrays(GL_POINTS, recvFirst, castFirst - recvFirst);
+        drawPieces(recvFirst, castFirst - recvFirst);
         // 3. Casters: count lit fragments and those with a receiver behind.
         gl.Disable(GL_BLEND);
         gl.BlendEquation(GL_FUNC_ADD);
@@ -741,7 +847,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.BindTexture(GL_TEXTURE_2D, gl_->recv.colour[0]);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gl_->ssbo[0]);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gl_->ssbo[1]);
-        if (end > castFirst) gl.DrawArrays(GL_POINTS, castFirst, end - castFirst);
+        drawPieces(castFirst, end - castFirst);
         gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
         gl.Disable(GL_SCISSOR_TEST);
         gl.MemoryBarrier(GL_ALL_BARRIER_BITS);

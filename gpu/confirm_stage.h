@@ -7,9 +7,9 @@
 //    across shared edges) covers the whole pixel, and then at the farthest depth that
 //    sheet can have over the pixel;
 //  - the group and the receivers are over-estimated: every pixel whose square touches a
-//    triangle (triangles enlarged by half a pixel diagonal, in a geometry shader) gets a
-//    fragment, at the nearest depth the group / the farthest depth the receivers can have
-//    over the pixel;
+//    triangle gets a fragment (triangles enlarged by half a pixel diagonal, with an exact
+//    separating-axis test per pixel), at the nearest depth the group / the farthest depth
+//    the receivers can have over the pixel;
 //  - a pixel passes for group g when g may be lit there (its nearest depth is not behind
 //    the blocked depth) and a receiver may lie behind it by more than the bias.
 // If no pixel of any view passes, no ray from the light meets a lit point of g with a
@@ -25,11 +25,19 @@
 //    have been a receiver);
 //  - a surface behind itself within one pixel: a sloped surface's farthest depth over a
 //    pixel lies behind its own nearest depth, so "nothing behind" needs a bias larger
-//    than a pixel's depth span (the geometry stage proves those exactly).
+//    than a pixel's depth span plus the depth margins (~1e-6 of the view's depth range);
+//    with bias 0 it is never proved (the geometry stage proves those exactly);
+//  - occluders made of separate objects, or of pieces that do not share edges (a wall of
+//    bricks, two slabs side by side): the pixels along their seams count as open.
 // Slope bias only adds to the bias and is ignored (ignoring it admits more receivers);
-// range and cone are applied only to exclude receivers wholly out of range; the terrain
-// rule only excludes receiver triangles that lie wholly under the lowest terrain sample
-// around them by more than terrainTolerance.
+// range is applied only to exclude receivers wholly out of range, the cone only through
+// the view (a square frustum around it); the terrain rule only excludes receiver
+// triangles that lie wholly under the lowest terrain sample around them by more than
+// terrainTolerance.
+//
+// Cost: per light and view, the casters' pixels set a region (a bounding rectangle and
+// 8 x 8 pixel cells) outside which nothing is drawn; receivers that lie nowhere behind a
+// caster and occluder sheets that lie nowhere in front of one are left out.
 #pragma once
 
 #include <memory>
@@ -44,7 +52,7 @@ namespace shadowcull::gpu {
 struct GpuConfirmOptions {
     int resolution = 1024;         // pixels per side of each light view
     int maxPixelsPerGroup = 256;   // passed pixels kept per (group, light)
-    bool collectViewStats = false; // read back coverage counts per view (tests, reports)
+    bool collectViewStats = false; // draw whole views (no pruning) and read back coverage counts (tests)
 };
 
 // A pixel where the group may be lit with a receiver behind: the light ray through the

@@ -147,6 +147,41 @@ void PieceBuilder::emit(const glm::dvec3* v, float dilatePx, float kind, uint32_
     const glm::dvec2 d1 = P[1] - P[0], d2 = P[2] - P[0], d3 = P[2] - P[1];
     const double det = d1.x * d2.y - d1.y * d2.x;
     const double maxLen2 = std::max({glm::dot(d1, d1), glm::dot(d2, d2), glm::dot(d3, d3)});
+    // The shape drawn: every pixel centre within h (L-infinity) of the piece must be in it.
+    // 0.01 px more than the fragment shader's widest test, against float rounding.
+    const double h = 0.5 + double(dilatePx) + double(r.misc[1]) + 0.01;
+    const double boxArea = (maxX - minX + 2 * h) * (maxY - minY + 2 * h);
+    bool triangleCover = false;
+    if (kind == 0.0f && maxLen2 > 0 && std::abs(det) > 1e-6 * maxLen2) {
+        // Edge k's line pushed outwards by h (|nx| + |ny|) (the square's support along its
+        // unit outward normal n); vertex k of the cover is where lines k-1 and k meet.
+        const double orient = det > 0 ? 1.0 : -1.0;
+        glm::dvec2 n[3];
+        double c[3];
+        for (int k = 0; k < 3; ++k) {
+            const glm::dvec2 e = P[(k + 1) % 3] - P[k];
+            n[k] = glm::dvec2(e.y, -e.x) * (orient / glm::length(e));
+            c[k] = glm::dot(n[k], P[k]) + h * (std::abs(n[k].x) + std::abs(n[k].y));
+        }
+        glm::dvec2 V[3];
+        for (int k = 0; k < 3; ++k) {
+            const glm::dvec2 &a = n[(k + 2) % 3], &b = n[k];
+            const double ca = c[(k + 2) % 3], cb = c[k], dd = a.x * b.y - a.y * b.x;
+            V[k] = glm::dvec2((ca * b.y - cb * a.y) / dd, (a.x * cb - b.x * ca) / dd);
+        }
+        const double triArea =
+            0.5 * std::abs((V[1].x - V[0].x) * (V[2].y - V[0].y) - (V[1].y - V[0].y) * (V[2].x - V[0].x));
+        if (std::isfinite(triArea) && triArea < 0.8 * boxArea) {
+            triangleCover = true;
+            const glm::dvec2 corners[4] = {V[0], V[1], V[2], V[2]};
+            for (int k = 0; k < 4; ++k) r.cover[2 * k] = float(corners[k].x), r.cover[2 * k + 1] = float(corners[k].y);
+        }
+    }
+    if (!triangleCover) {
+        const double x0 = minX - h, y0 = minY - h, x1 = maxX + h, y1 = maxY + h;
+        const double corners[8] = {x0, y0, x1, y0, x0, y1, x1, y1};
+        for (int k = 0; k < 8; ++k) r.cover[k] = float(corners[k]);
+    }
     // The plane is used only where it is well conditioned (smallest angle not tiny);
     // otherwise the shader keeps to the vertices' depth range, which is always sound.
     if (kind == 0.0f && maxLen2 > 0 && std::abs(det) > 1e-6 * maxLen2) {

@@ -1,6 +1,6 @@
 // CPU side of the conservative rasterisation used by the confirmation stage: triangles
-// and edges of the window, projected in double precision into a light view and handed to
-// the geometry shader as one point each ("pieces"). The shader then decides coverage and
+// and edges of the window, projected in double precision into a light view and drawn as
+// one instanced quad each ("pieces"). The fragment shader then decides coverage and
 // depth bounds per pixel with margins that only ever admit more (see confirm_stage.cpp).
 //
 // Perspective views are clipped here, in double, against z >= near and a guard band
@@ -18,8 +18,8 @@
 
 namespace shadowcull::gpu {
 
-// One triangle (kind 0) or edge segment (kind 1) in pixel coordinates, as the geometry
-// shader gets it (one point each). Computed in double, stored in float:
+// One triangle (kind 0) or edge segment (kind 1) in pixel coordinates, drawn as one
+// instance of a four-vertex strip. Computed in double, stored in float:
 //  - box: the bounding box (pixels);
 //  - edge k: the unit normal n of edge k (vertex k to k+1) and the extent [lo, hi] of the
 //    triangle along n (one bound is the edge's line, the other the opposite vertex). These
@@ -29,6 +29,10 @@ namespace shadowcull::gpu {
 //    the depth for orthographic views and 1/z for perspective ones (both affine in pixel
 //    coordinates over a planar triangle), usable only when planeValid; and the depth range
 //    [zmin, zmax] of the piece's vertices, which always bounds it.
+//  - cover: four corners (a triangle strip) of a shape holding every pixel centre whose
+//    square, widened by 0.5 + dilate + margin, can touch the piece: the triangle with its
+//    edges pushed out by that much where that is smaller than the widened bounding box,
+//    else the box (sharp or degenerate triangles).
 struct RasterPiece {
     float box[4];      // xmin, ymin, xmax, ymax
     float edge[3][4];  // nx, ny, lo, hi
@@ -36,8 +40,9 @@ struct RasterPiece {
     float plane2[4];   // b, zmin, zmax, planeValid (0/1)
     float misc[4];     // dilate (px, extra half-width), margin (px), kind (0 tri, 1 edge), 0
     uint32_t id;       // query index (casters), else 0
+    float cover[8];    // x, y of four corners, triangle-strip order
 };
-static_assert(sizeof(RasterPiece) == 29 * 4, "vertex layout");
+static_assert(sizeof(RasterPiece) == 37 * 4, "vertex layout");
 
 class PieceBuilder {
 public:

@@ -56,6 +56,8 @@ namespace shadowcull::gpu {
     X(PFNGLVERTEXATTRIBPOINTERPROC, VertexAttribPointer)                             \
     X(PFNGLVERTEXATTRIBIPOINTERPROC, VertexAttribIPointer)                           \
     X(PFNGLDRAWARRAYSPROC, DrawArrays)                                               \
+    X(PFNGLDRAWARRAYSINSTANCEDBASEINSTANCEPROC, DrawArraysInstancedBaseInstance)     \
+    X(PFNGLVERTEXATTRIBDIVISORPROC, VertexAttribDivisor)                             \
     X(PFNGLCREATESHADERPROC, CreateShader)                                           \
     X(PFNGLSHADERSOURCEPROC, ShaderSource)                                           \
     X(PFNGLCOMPILESHADERPROC, CompileShader)                                         \
