@@ -274,6 +274,8 @@ TEST(GpuLightView, ViewsCoverWhatEachLightReaches) {
 // --- Without a context ------------------------------------------------------------------
 
 TEST(GpuContext, NoContextIsAnInternalErrorAndDecidesNothing) {
+    const char* before = std::getenv("SHADOWCULL_NO_GL");
+    const std::string saved = before ? before : "";
     ::setenv("SHADOWCULL_NO_GL", "1", 1);
     Expected<std::unique_ptr<gpu::GlContext>> ctx = gpu::createOffscreenContext(8, 8);
     EXPECT_FALSE(ctx);
@@ -285,7 +287,8 @@ TEST(GpuContext, NoContextIsAnInternalErrorAndDecidesNothing) {
     gpu::GpuConfirmStage stage;
     StageStats st;
     Status s = stage.run(l->window, l->verdicts, st);
-    ::unsetenv("SHADOWCULL_NO_GL");
+    if (before) ::setenv("SHADOWCULL_NO_GL", saved.c_str(), 1);
+    else ::unsetenv("SHADOWCULL_NO_GL");
     ASSERT_FALSE(s);
     EXPECT_EQ(s.error().kind, ErrorKind::Internal);
     EXPECT_NE(s.error().message.find("no offscreen OpenGL context"), std::string::npos) << s.error().message;
