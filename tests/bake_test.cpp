@@ -19,6 +19,7 @@
 
 #include "cli/pipeline.h"
 #include "cli/report.h"
+#include "tests/support/bake_lookup.h"
 #include "tests/support/sample_space.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
@@ -39,20 +40,6 @@ cli::BakeResult bakeDry(const fs::path& dir, bool useGeometry = true) {
     return r ? std::move(*r) : cli::BakeResult{};
 }
 
-// The decision for (object at `loc`, group, light) in a bake result.
-const Decision* findDecision(const cli::BakeResult& r, const ObjectLocation& loc, int group, int light) {
-    for (const ChunkVerdicts& cv : r.chunks) {
-        if (chunkFileName(cv.coord) != loc.chunkFile) continue;
-        for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
-            const ObjectVerdicts& ov = cv.objects[oi];
-            if (ov.elementIndex != loc.elementIndex) continue;
-            if (group >= ov.groupCount) return nullptr;
-            return &cv.at(oi, group, light);
-        }
-    }
-    return nullptr;
-}
-
 // Every (key, group, light) of a baked builder space -> "verdict/stage".
 std::map<std::string, std::string> verdictMap(const SpaceBuilder& b, const cli::BakeResult& r, const WorldTransform& wt) {
     std::map<std::string, std::string> out;
@@ -70,27 +57,9 @@ std::map<std::string, std::string> verdictMap(const SpaceBuilder& b, const cli::
     return out;
 }
 
-struct NamedScene {
-    const char* name;
-    std::function<SpaceBuilder()> make;
-};
-
-const std::vector<NamedScene>& scenes() {
-    static const std::vector<NamedScene> s = {
-        {"cubeOnTerrain", cubeOnTerrain},
-        {"twoFloatingCubes", twoFloatingCubes},
-        {"rangeAndCone", rangeAndCone},
-        {"thinRod", thinRod},
-        {"twoLightsMasks", twoLightsMasks},
-        {"hiddenUnderOpaqueRoof", [] { return hiddenUnderRoof(false); }},
-        {"hiddenUnderAlphaRoof", [] { return hiddenUnderRoof(true); }},
-    };
-    return s;
-}
-
 const std::vector<NamedScene>& scenesWithSample() {
     static const std::vector<NamedScene> s = [] {
-        std::vector<NamedScene> all = scenes();
+        std::vector<NamedScene> all = knownAnswerScenes();
         all.push_back({"sampleSpace", sampleSpace});
         return all;
     }();
@@ -218,7 +187,7 @@ TEST(Metamorphic, MovedLiftedAndTurnedSpacesBakeIdentically) {
         {"turned a quarter", WorldTransform::turned(1)},
         {"turned three quarters and moved", WorldTransform{3, glm::dvec3(-1000 * S, 5000, 1000 * S)}},
     };
-    for (const NamedScene& scene : scenes()) {
+    for (const NamedScene& scene : knownAnswerScenes()) {
         SCOPED_TRACE(scene.name);
         SpaceBuilder b = scene.make();
         fs::path dir = freshTestDir(std::string("-") + scene.name);

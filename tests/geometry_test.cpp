@@ -9,6 +9,7 @@
 #include "cli/pipeline.h"
 #include "cli/report.h"
 #include "geometry/exact_frustum.h"
+#include "tests/support/bake_lookup.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 
@@ -120,15 +121,6 @@ cli::BakeResult bake(const SpaceBuilder& b, const fs::path& dir, const WorldTran
     return r ? std::move(*r) : cli::BakeResult{};
 }
 
-const Decision* decisionOf(const cli::BakeResult& r, const ObjectLocation& loc, int group, int light) {
-    for (const ChunkVerdicts& cv : r.chunks) {
-        if (chunkFileName(cv.coord) != loc.chunkFile) continue;
-        for (size_t oi = 0; oi < cv.objects.size(); ++oi)
-            if (cv.objects[oi].elementIndex == loc.elementIndex && group < cv.objects[oi].groupCount)
-                return &cv.at(oi, group, light);
-    }
-    return nullptr;
-}
 
 // One hard case: a builder and, per model uuid (group 0, light 1), the expected outcome.
 struct HardCase {
@@ -339,7 +331,7 @@ TEST(GeometryStage, HardCasesHaveTheExpectedVerdictsEverywhere) {
             cli::BakeResult r = bake(b, dir / "space", moves[k]);
             auto where = b.locateObjects(moves[k]);
             for (const auto& [uuid, v] : want) {
-                const Decision* d = decisionOf(r, where.at(uuid), 0, 0);
+                const Decision* d = findDecision(r, where.at(uuid), 0, 0);
                 ASSERT_NE(d, nullptr);
                 EXPECT_EQ(d->verdict, v) << "got " << verdictName(d->verdict) << " by " << d->stage << ": " << d->reason
                                          << (d->witness ? " on " + d->witness->receiver : "");
@@ -358,7 +350,7 @@ TEST(GeometryStage, ProvesTheFloatingCubesAndNeverContradictsAWitness) {
         auto where = b.locateObjects();
         for (const KnownAnswer& a : b.expectations())
             for (int l = 0; l < int(r.settings.lights.size()); ++l) {
-                const Decision* d = decisionOf(r, where.at(a.key), a.group, l);
+                const Decision* d = findDecision(r, where.at(a.key), a.group, l);
                 ASSERT_NE(d, nullptr);
                 const bool trueBit = (a.mask >> l) & 1u;
                 if (trueBit) EXPECT_EQ(d->verdict, Verdict::Kept) << a.key << ": " << a.why;
