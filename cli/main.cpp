@@ -100,6 +100,8 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"analytic", "gpu"}));
     bake->add_option("--gpu-resolution", opt.gpuResolution, "Pixels per side of each light view (GPU stages)")
         ->check(CLI::Range(16, 16384));
+    bake->add_flag("--gpu-terrain", opt.gpuTerrain,
+                   "Also send terrain groups to the GPU confirmation (slow; they are rarely proved there)");
     bake->add_flag("--dry-run", [&](int64_t) { opt.write = false; }, "Compute and report, but write no chunk file");
     bake->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
     bake->add_flag("--resume", opt.resume,

@@ -121,7 +121,12 @@ std::vector<ShadowWrite> shadowWrites(const ChunkVerdicts& cv) {
 StageRunner::StageRunner(const BakeOptions& opt)
     : rays_(opt.raycast),
       volumes_(opt.geometry),
-      confirm_(gpu::GpuConfirmOptions{opt.gpuResolution}),
+      confirm_([&] {
+          gpu::GpuConfirmOptions o;
+          o.resolution = opt.gpuResolution;
+          o.includeTerrain = opt.gpuTerrain;
+          return o;
+      }()),
       baseline_(gpu::GpuBaselineOptions{opt.gpuResolution}) {
     bool useGpu = opt.useGpu && !opt.gpuBaseline;
     if (useGpu || opt.gpuBaseline) {

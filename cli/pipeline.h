@@ -44,6 +44,7 @@ struct BakeOptions {
     // with: NOT conservative, see gpu/baseline.h).
     bool gpuBaseline = false;
     int gpuResolution = 1024;  // pixels per side of each light view
+    bool gpuTerrain = false;   // also send terrain groups to the GPU confirmation
     bool write = true;        // false: compute only (tests, reports)
     // Long bakes: commit each chunk as soon as it is baked, record what was written, and
     // skip chunks whose inputs and file are unchanged since (cli/resume.h).

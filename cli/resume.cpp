@@ -44,7 +44,7 @@ uint64_t windowInputHash(const Space& space, ChunkCoord centre, const BakeOption
     Hasher h;
     h.str(kBakeLogicVersion);
     h.pod(opt.useRaycast).pod(opt.useGeometry).pod(opt.raycast.areaSamples).pod(opt.raycast.maxFeatureSamples);
-    h.pod(opt.raycast.maxHitsPerRay).pod(opt.useGpu).pod(opt.gpuBaseline).pod(opt.gpuResolution);
+    h.pod(opt.raycast.maxHitsPerRay).pod(opt.useGpu).pod(opt.gpuBaseline).pod(opt.gpuResolution).pod(opt.gpuTerrain);
     h.pod(S.chunkSize).pod(S.terrainTolerance).pod(S.neighbours);
     for (const Light& L : S.lights) {
         h.str(L.name).pod(L.type).vec(L.direction).vec(L.position).pod(L.range).pod(L.coneHalfAngleDeg);

@@ -469,7 +469,13 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     const auto t0 = std::chrono::steady_clock::now();
     groups_.clear();
     viewStats_.clear();
-    const std::vector<bool> lights = lightsWithUndecided(cv);
+    // Lights with an undecided bit this stage looks at.
+    std::vector<bool> lights(size_t(cv.lightCount), false);
+    for (const ObjectVerdicts& ov : cv.objects) {
+        if (ov.terrain && !options_.includeTerrain) continue;
+        for (size_t k = 0; k < ov.decisions.size(); ++k)
+            if (ov.decisions[k].verdict == Verdict::Undecided) lights[k % size_t(cv.lightCount)] = true;
+    }
     if (std::none_of(lights.begin(), lights.end(), [](bool b) { return b; })) return Status::ok();
     if (Status s = ensureGl(); !s) return s;
     WindowTriangles tris(w);
@@ -499,7 +505,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     std::vector<GroupPixels> queries;
     for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
         const ObjectVerdicts& ov = cv.objects[oi];
-        if (ov.windowObject < 0) continue;
+        if (ov.windowObject < 0 || (ov.terrain && !options_.includeTerrain)) continue;
         for (int g = 0; g < ov.groupCount; ++g) {
             if (cv.at(oi, g, l).verdict != Verdict::Undecided) continue;
             auto& q = queryOf[size_t(ov.windowObject)];

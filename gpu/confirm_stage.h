@@ -53,6 +53,9 @@ struct GpuConfirmOptions {
     int resolution = 1024;         // pixels per side of each light view
     int maxPixelsPerGroup = 256;   // passed pixels kept per (group, light)
     bool collectViewStats = false; // draw whole views (no pruning) and read back coverage counts (tests)
+    // Terrain groups span the whole view and are almost never proved here; leaving them out
+    // (they stay undecided, kept) spares a window whose other bits are decided all passes.
+    bool includeTerrain = false;
 };
 
 // A pixel where the group may be lit with a receiver behind: the light ray through the

@@ -467,7 +467,10 @@ TEST(GpuConfirm, TerrainRuleOnlyExcludesReceiversWhollyUnderTheTerrain) {
     // behind it there).
     std::unique_ptr<Loaded> deep = load(quadUnderTerrain(1.0), "deep");
     ASSERT_TRUE(deep);
-    gpu::GpuConfirmStage stage({64});
+    gpu::GpuConfirmOptions withTerrain;
+    withTerrain.resolution = 64;
+    withTerrain.includeTerrain = true;
+    gpu::GpuConfirmStage stage(withTerrain);
     runStage(stage, *deep);
     EXPECT_EQ(deep->at("terrain", 0, 0).verdict, Verdict::Culled) << deep->at("terrain", 0, 0).reason;
     EXPECT_EQ(deep->at("terrain", 0, 0).reason.rfind("nothing behind", 0), 0u) << deep->at("terrain", 0, 0).reason;
@@ -477,9 +480,16 @@ TEST(GpuConfirm, TerrainRuleOnlyExcludesReceiversWhollyUnderTheTerrain) {
     // falls on it, a 1.
     std::unique_ptr<Loaded> shallow = load(quadUnderTerrain(0.005), "shallow");
     ASSERT_TRUE(shallow);
-    gpu::GpuConfirmStage stage2({64});
+    gpu::GpuConfirmStage stage2(withTerrain);
     runStage(stage2, *shallow);
     EXPECT_EQ(shallow->at("terrain", 0, 0).verdict, Verdict::Undecided);
+    // By default terrain groups are not examined (they stay undecided), the rest is.
+    std::unique_ptr<Loaded> byDefault = load(quadUnderTerrain(1.0), "default");
+    ASSERT_TRUE(byDefault);
+    gpu::GpuConfirmStage stage3({64});
+    runStage(stage3, *byDefault);
+    EXPECT_EQ(byDefault->at("terrain", 0, 0).verdict, Verdict::Undecided);
+    EXPECT_EQ(byDefault->at(fixedUuid(1), 0, 0).verdict, Verdict::Culled);
 }
 
 // A 1 x 1 m one-sided quad 2 m up (caster) and a receiver quad on the ground beside its
