@@ -155,6 +155,18 @@ Status GpuBaselineMethod::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats
         size_t count;
     };
     std::vector<Pending> pending;
+    auto readPending = [&] {
+        for (const Pending& p : pending) {
+            GLuint64 n = 0;
+            gl.GetQueryObjectui64v(p.query, GL_QUERY_RESULT, &n);
+            counts_[p.count].samples += n;
+        }
+        std::vector<GLuint> ids;
+        ids.reserve(pending.size());
+        for (const Pending& p : pending) ids.push_back(p.query);
+        if (!ids.empty()) gl.DeleteQueries(GLsizei(ids.size()), ids.data());
+        pending.clear();
+    };
     const bool alphaPasses = w.hasAlphaTested;
     for (int l = 0; l < cv.lightCount; ++l) {
         if (!lights[size_t(l)]) continue;
@@ -213,14 +225,12 @@ Status GpuBaselineMethod::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats
                     gl.EndQuery(GL_SAMPLES_PASSED);
                     pending.push_back({q, it->second});
                 }
+                // Read this pass's queries (issued all at once, read after) before the next
+                // pass: llvmpipe corrupted its heap with thousands of queries outstanding
+                // across passes (free(): corrupted unsorted chunks in DeleteQueries).
+                readPending();
             }
         }
-    }
-    for (const Pending& p : pending) {
-        GLuint64 n = 0;
-        gl.GetQueryObjectui64v(p.query, GL_QUERY_RESULT, &n);
-        counts_[p.count].samples += n;
-        gl.DeleteQueries(1, &p.query);
     }
     gl.BindVertexArray(0);
     gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
