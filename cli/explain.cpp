@@ -68,9 +68,7 @@ void explainBit(const Decision& d, std::ostream& out) {
 
 int runExplain(const ExplainOptions& opt, std::ostream& out, std::ostream& err) {
     // Check the chunk first, so that a typo gets the list of chunks rather than a bake error.
-    std::string file = fs::path(opt.chunk).filename().string();
-    if (file.size() == 9) file += ".chunk";
-    const std::optional<ChunkCoord> coord = parseChunkName(file);
+    const std::optional<ChunkCoord> coord = parseChunkArgument(opt.chunk);
     if (!coord) {
         err << "shadowcull: error: " << opt.chunk << ": not a chunk name (XXXXZZZZo or XXXXZZZZo.chunk, 16-bit hex)\n";
         return kExitBadInput;
@@ -87,7 +85,7 @@ int runExplain(const ExplainOptions& opt, std::ostream& out, std::ostream& err) 
     BakeOptions bo;
     bo.spaceDir = opt.spaceDir;
     bo.resourceRoot = opt.resourceRoot;
-    bo.chunkNames = {file};
+    bo.chunkNames = {chunkFileName(*coord)};
     bo.write = false;
     Expected<BakeResult> r = runBake(bo);
     if (!r) {

@@ -174,8 +174,7 @@ int main(int argc, char** argv) {
     if (*diff) return runDiff(diffOpt, std::cout, std::cerr);
     if (*check) return runCheck(checkOpt, std::cout, std::cerr);
     if (*render) {
-        std::string file = renderChunk.size() == 9 ? renderChunk + ".chunk" : renderChunk;
-        std::optional<ChunkCoord> c = parseChunkName(file);
+        std::optional<ChunkCoord> c = parseChunkArgument(renderChunk);
         if (!c) {
             std::fprintf(stderr, "shadowcull: error: %s: not a chunk name (XXXXZZZZo.chunk)\n", renderChunk.c_str());
             return kExitUsage;

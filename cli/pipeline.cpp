@@ -205,9 +205,7 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
     // 1. Which chunks.
     std::vector<ChunkCoord> only;
     for (const std::string& name : opt.chunkNames) {
-        std::string file = fs::path(name).filename().string();
-        if (file.size() == 9) file += ".chunk";  // "0000ffffo" is accepted too
-        std::optional<ChunkCoord> c = parseChunkName(file);
+        std::optional<ChunkCoord> c = parseChunkArgument(name);
         if (!c) return makeError(ErrorKind::BadInput, name, 0, "not a chunk name (XXXXZZZZo.chunk, 16-bit hex)");
         only.push_back(*c);
     }

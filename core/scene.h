@@ -64,6 +64,8 @@ struct ChunkCoord {
 // other name.
 std::optional<ChunkCoord> parseChunkName(const std::string& fileName);
 std::string chunkFileName(ChunkCoord c);  // lowercase hex
+// A chunk named on the command line: "XXXXZZZZo", "XXXXZZZZo.chunk", or a path to one.
+std::optional<ChunkCoord> parseChunkArgument(const std::string& argument);
 
 // Row-vector affine transform: p' = p.x*rows[0] + p.y*rows[1] + p.z*rows[2] + rows[3].
 struct RowTransform {

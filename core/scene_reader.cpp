@@ -57,6 +57,12 @@ std::optional<ChunkCoord> parseChunkName(const std::string& fileName) {
     return c;
 }
 
+std::optional<ChunkCoord> parseChunkArgument(const std::string& argument) {
+    std::string file = fs::path(argument).filename().string();
+    if (file.size() == 9) file += ".chunk";
+    return parseChunkName(file);
+}
+
 std::string chunkFileName(ChunkCoord c) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%04x%04xo.chunk", unsigned(uint16_t(c.x)), unsigned(uint16_t(c.z)));

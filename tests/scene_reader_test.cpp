@@ -97,6 +97,16 @@ TEST(ChunkName, RejectsOtherNames) {
         EXPECT_FALSE(parseChunkName(n)) << n;
 }
 
+TEST(ChunkName, CommandLineArgumentsTakeShortNamesFileNamesAndPaths) {
+    for (const char* a : {"0000ffffo", "0000ffffo.chunk", "some/dir/0000ffffo.chunk", "/abs/0000FFFFo"}) {
+        auto c = parseChunkArgument(a);
+        ASSERT_TRUE(c) << a;
+        EXPECT_EQ(c->x, 0);
+        EXPECT_EQ(c->z, -1);
+    }
+    for (const char* a : {"0000fff", "0000ffffo.chk", "dir/", ""}) EXPECT_FALSE(parseChunkArgument(a)) << a;
+}
+
 TEST(ChunkName, RoundTrips) {
     for (int x : {-32768, -2, -1, 0, 1, 255, 32767})
         for (int z : {-1, 0, 7}) {
