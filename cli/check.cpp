@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "cli/pipeline.h"
@@ -95,8 +96,14 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
     if (options.pictures && !pictures.empty()) {
         std::error_code ec;
         fs::create_directories(options.outDir, ec);
+        // One bake per chunk, however many of its lights disagree (pictures is sorted by chunk).
+        std::optional<ChunkCoord> bakedAt;
+        Expected<ChunkBake> cb = makeError(ErrorKind::Internal, "", 0, "no chunk baked yet");
         for (const auto& [coord, light] : pictures) {
-            Expected<ChunkBake> cb = bakeChunk(analytic, coord);
+            if (!bakedAt || !(*bakedAt == coord)) {
+                cb = bakeChunk(analytic, coord);
+                bakedAt = coord;
+            }
             if (!cb) {
                 err << "shadowcull: error: " << cb.error().what() << "\n";
                 return exitCodeFor(cb.error().kind);
