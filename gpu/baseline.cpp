@@ -89,12 +89,6 @@ Status GpuBaselineMethod::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats
         if (!s) return s.error();
         g->session = std::move(*s);
         const GlApi& gl = g->session->gl;
-        GLint maxSize = 0;
-        gl.GetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &maxSize);
-        if (res > maxSize)
-            return makeError(ErrorKind::Internal, "", 0,
-                             "GPU resolution " + std::to_string(res) + " exceeds the renderbuffer limit " +
-                                 std::to_string(maxSize));
         Expected<GLuint> p = gl.program(kCountVs, nullptr, kCountFs);
         if (!p) return p.error();
         g->program = *p;

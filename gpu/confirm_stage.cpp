@@ -407,11 +407,6 @@ Status GpuConfirmStage::ensureGl() {
     if (!s) return s.error();
     g->session = std::move(*s);
     const GlApi& gl = g->session->gl;
-    GLint maxSize = 0;
-    gl.GetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
-    if (res > maxSize)
-        return makeError(ErrorKind::Internal, "", 0,
-                         "GPU resolution " + std::to_string(res) + " exceeds the texture limit " + std::to_string(maxSize));
     Expected<GLuint> raster = gl.program(kRasterVs, nullptr, kRasterFs);
     if (!raster) return raster.error();
     g->raster = *raster;

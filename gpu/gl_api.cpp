@@ -71,6 +71,21 @@ Expected<GLuint> GlApi::program(const char* vertex, const char* geometry, const 
 
 Expected<RenderTarget> makeRenderTarget(const GlApi& gl, int width, int height, const std::vector<GLenum>& formats,
                                         bool depthStencil) {
+    // Too large a target fails with a GL error later, or not at all on some drivers: say so
+    // up front, against the limit of what is allocated (textures, a renderbuffer).
+    auto limit = [&](GLenum name, const char* what) -> Status {
+        GLint max = 0;
+        gl.GetIntegerv(name, &max);
+        if (width > max || height > max)
+            return makeError(ErrorKind::Internal, "", 0,
+                             "GPU render target " + std::to_string(width) + " x " + std::to_string(height) +
+                                 " exceeds the " + what + " limit " + std::to_string(max) + " (lower --gpu-resolution)");
+        return Status::ok();
+    };
+    if (!formats.empty())
+        if (Status s = limit(GL_MAX_TEXTURE_SIZE, "texture"); !s) return s.error();
+    if (depthStencil)
+        if (Status s = limit(GL_MAX_RENDERBUFFER_SIZE, "renderbuffer"); !s) return s.error();
     RenderTarget t;
     t.width = width;
     t.height = height;

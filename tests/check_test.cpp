@@ -2,6 +2,8 @@
 // exactly that bit as a GPU false cull, with the witness, and exits 1. render writes the
 // light's view.
 
+#include <sys/wait.h>
+
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -69,4 +71,21 @@ TEST(Check, RenderWritesTheLightsView) {
     const std::string bad = std::string(SHADOWCULL_BIN) + " render '" + (dir / "space").string() +
                             "' --chunk 00000000o --light 7 --out '" + (dir / "x.png").string() + "' 2>/dev/null";
     EXPECT_NE(std::system(bad.c_str()), 0) << "light 7 does not exist";
+}
+
+// A light view larger than the GL limits is refused up front with a message, not drawn
+// half: rangeAndCone's light 1 is a point lamp, rendered as six 8192 px tiles (3 x 2).
+TEST(Check, RenderRefusesAViewBeyondTheGlLimit) {
+    if (!haveGl()) GTEST_SKIP() << "no OpenGL context could be made (OSMesa); render cannot run here";
+    SpaceBuilder b = rangeAndCone();
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    const std::string cmd = std::string(SHADOWCULL_BIN) + " render '" + (dir / "space").string() +
+                            "' --chunk 00000000o --light 1 --gpu-resolution 8192 --out '" + (dir / "big.png").string() +
+                            "' 2> '" + (dir / "err").string() + "'";
+    const int rc = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(rc));
+    EXPECT_EQ(WEXITSTATUS(rc), 5);
+    EXPECT_NE(readText(dir / "err").find("exceeds the texture limit"), std::string::npos) << readText(dir / "err");
+    EXPECT_FALSE(fs::exists(dir / "big.png"));
 }
