@@ -31,20 +31,19 @@
 #include <cmath>
 #include <memory>
 #include <string>
-#include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include <embree3/rtcore.h>
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
-#include <pmmintrin.h>
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
-#include <xmmintrin.h>
 
 #include "core/scene.h"
 #include "core/window.h"
+#include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
 
 namespace shadowcull::bench {
@@ -104,50 +103,6 @@ void collectAllHits(const RTCFilterFunctionNArguments* args) {
     }
 }
 
-// The stage's context for finding p (raycast_stage.cpp, reproduced): light passes
-// alpha-tested groups other than the target group.
-struct AlphaSkip {
-    RTCIntersectContext ctx;
-    const BakeWindow* window = nullptr;
-    uint32_t object = 0, group = 0;
-};
-
-void skipAlphaTested(const RTCFilterFunctionNArguments* args) {
-    const auto* a = reinterpret_cast<const AlphaSkip*>(args->context);
-    for (unsigned i = 0; i < args->N; ++i) {
-        if (!args->valid[i]) continue;
-        const unsigned inst = RTCHitN_instID(args->hit, args->N, i, 0);
-        const uint32_t object = inst != RTC_INVALID_GEOMETRY_ID ? inst : RTCHitN_geomID(args->hit, args->N, i);
-        const WindowObject& o = a->window->objects[object];
-        const uint32_t group = o.mesh->triangleGroup[RTCHitN_primID(args->hit, args->N, i)];
-        if (o.mesh->groups[group].alphaTested && !(object == a->object && group == a->group)) args->valid[i] = 0;
-    }
-}
-
-void enableFlushToZero() {
-    _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-    _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-}
-
-template <class Place>
-RTCGeometry makeTriangles(RTCDevice device, const Mesh& mesh, Place place) {
-    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                          3 * sizeof(float), mesh.positions.size()));
-    auto* ix = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                              3 * sizeof(unsigned), mesh.triangles.size()));
-    for (size_t k = 0; k < mesh.positions.size(); ++k) {
-        const glm::dvec3 p = place(mesh.positions[k]);
-        v[3 * k] = float(p.x);
-        v[3 * k + 1] = float(p.y);
-        v[3 * k + 2] = float(p.z);
-    }
-    for (size_t k = 0; k < mesh.triangles.size(); ++k)
-        for (int c = 0; c < 3; ++c) ix[3 * k + size_t(c)] = mesh.triangles[k][size_t(c)];
-    rtcCommitGeometry(geom);
-    return geom;
-}
-
 double secondsSince(std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
@@ -180,38 +135,15 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
         return out;
     }
     const auto tBuild = std::chrono::steady_clock::now();
-    std::unordered_map<const Mesh*, RTCScene> prototypes;
-    RTCScene scene = rtcNewScene(device);
-    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+    // The stage's own scene code (raycast/embree_scene.h), so both trace the same scene.
+    auto scenes = std::make_unique<raycast::EmbreeScenes>(device);
+    RTCScene scene = scenes->buildWindow(w);
     uint64_t windowTriangles = 0;
-    for (size_t k = 0; k < w.objects.size(); ++k) {
-        const WindowObject& o = w.objects[k];
+    std::unordered_set<const Mesh*> uniqueMeshes;
+    for (const WindowObject& o : w.objects) {
         windowTriangles += o.mesh->triangles.size();
-        RTCGeometry g;
-        if (o.kind == ChunkObject::Kind::Terrain) {
-            g = makeTriangles(device, *o.mesh, [&](const glm::dvec3& p) { return o.lsTransform.apply(p); });
-        } else {
-            RTCScene& proto = prototypes[o.mesh];
-            if (!proto) {
-                proto = rtcNewScene(device);
-                rtcSetSceneFlags(proto, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
-                RTCGeometry pg = makeTriangles(device, *o.mesh, [](const glm::dvec3& p) { return p; });
-                rtcAttachGeometryByID(proto, pg, 0);
-                rtcReleaseGeometry(pg);
-                rtcCommitScene(proto);
-            }
-            g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
-            rtcSetGeometryInstancedScene(g, proto);
-            float xfm[12];
-            for (int r = 0; r < 4; ++r)
-                for (int c = 0; c < 3; ++c) xfm[3 * r + c] = float(o.lsTransform.rows[size_t(r)][c]);
-            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
-            rtcCommitGeometry(g);
-        }
-        rtcAttachGeometryByID(scene, g, unsigned(k));
-        rtcReleaseGeometry(g);
+        if (o.kind != ChunkObject::Kind::Terrain) uniqueMeshes.insert(o.mesh);
     }
-    rtcCommitScene(scene);
     const double buildSeconds = secondsSince(tBuild);
 
     // The stage's rays: per centre group and reaching light, through its sample points.
@@ -283,7 +215,7 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
         for (uint64_t k = 0; k < take; ++k) list.push_back(perLight[l][size_t(k % perLight[l].size())]);
         if (take) mix[w.lsLights[l].name] = take;
     }
-    out["window"] = {{"objects", w.objects.size()}, {"triangles", windowTriangles}, {"uniqueMeshes", prototypes.size()},
+    out["window"] = {{"objects", w.objects.size()}, {"triangles", windowTriangles}, {"uniqueMeshes", uniqueMeshes.size()},
                      {"centreGroups", centreGroups}, {"raysAvailable", available}, {"rayList", list.size()},
                      {"mix", mix}, {"buildSeconds", buildSeconds}};
     if (list.empty()) {
@@ -306,7 +238,7 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
             const uint64_t count = rep < 0 ? std::min<uint64_t>(n, 100000) : n;
             const auto t = std::chrono::steady_clock::now();
             tbb::parallel_for(tbb::blocked_range<uint64_t>(0, count, grain), [&](const tbb::blocked_range<uint64_t>& r) {
-                enableFlushToZero();
+                raycast::enableFlushToZero();
                 total += body(r.begin(), r.end());
             });
             if (rep >= 0) times.push_back(secondsSince(t));
@@ -385,10 +317,10 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
         uint64_t onTarget = 0;
         for (uint64_t i = b; i < e; ++i) {
             const Ray& s = rayAt(i);
-            AlphaSkip skip;
+            raycast::AlphaSkip skip;
             rtcInitIntersectContext(&skip.ctx);
             if (w.hasAlphaTested) {
-                skip.ctx.filter = &skipAlphaTested;
+                skip.ctx.filter = &raycast::skipAlphaTested;
                 skip.window = &w;
                 skip.object = s.object;
                 skip.group = s.group;
@@ -425,7 +357,7 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
         return visited;
     });
     rtcReleaseScene(scene);
-    for (auto& [mesh, proto] : prototypes) rtcReleaseScene(proto);
+    scenes.reset();  // its prototypes, before the device
     rtcReleaseDevice(device);
     return out;
 }

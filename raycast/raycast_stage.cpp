@@ -19,14 +19,12 @@
 #include <chrono>
 #include <cmath>
 #include <mutex>
-#include <unordered_map>
 
 #include <embree3/rtcore.h>
 #include <glm/geometric.hpp>
-#include <pmmintrin.h>
 #include <tbb/parallel_for.h>
-#include <xmmintrin.h>
 
+#include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
 
 namespace shadowcull::raycast {
@@ -41,43 +39,17 @@ struct Hit {
     uint32_t prim;    // triangle index in the object's mesh
 };
 
-// The context for finding p: rejects hits on alpha-tested groups (light passes them),
-// except on the group whose witness is sought (its own alpha-tested triangles are p).
-struct AlphaSkip {
-    RTCIntersectContext ctx;  // first member: Embree passes &ctx back to the filter
-    const BakeWindow* window = nullptr;
-    uint32_t object = 0, group = 0;
-};
-
-void skipAlphaTested(const RTCFilterFunctionNArguments* args) {
-    const auto* a = reinterpret_cast<const AlphaSkip*>(args->context);
-    for (unsigned i = 0; i < args->N; ++i) {
-        if (!args->valid[i]) continue;
-        const unsigned inst = RTCHitN_instID(args->hit, args->N, i, 0);
-        const uint32_t object = inst != RTC_INVALID_GEOMETRY_ID ? inst : RTCHitN_geomID(args->hit, args->N, i);
-        const WindowObject& o = a->window->objects[object];
-        const uint32_t group = o.mesh->triangleGroup[RTCHitN_primID(args->hit, args->N, i)];
-        if (o.mesh->groups[group].alphaTested && !(object == a->object && group == a->group)) args->valid[i] = 0;
-    }
-}
-
-void enableFlushToZero() {
-    // Denormals in ray traversal cost ~100x per operation; the geometry never needs them.
-    _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-    _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
-}
-
 }  // namespace
 
 struct RaycastStage::Impl {
     RaycastOptions opt;
     RTCDevice device = nullptr;
-    std::unordered_map<const Mesh*, RTCScene> prototypes;  // one per model resource, for the whole bake
+    std::unique_ptr<EmbreeScenes> scenes;  // prototypes kept for the whole bake
     std::mutex errorMutex;
     std::string lastError;
 
     ~Impl() {
-        for (auto& [mesh, scene] : prototypes) rtcReleaseScene(scene);
+        scenes.reset();  // before the device they belong to
         if (device) rtcReleaseDevice(device);
     }
 
@@ -94,72 +66,16 @@ struct RaycastStage::Impl {
         lastError.clear();
         return e;
     }
-
-    // Triangle geometry with vertices given by `place` (float, as Embree wants them).
-    template <class Place>
-    RTCGeometry makeTriangles(const Mesh& mesh, Place place) {
-        RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                              3 * sizeof(float), mesh.positions.size()));
-        auto* ix = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                  3 * sizeof(unsigned), mesh.triangles.size()));
-        if (!v || !ix) return geom;
-        for (size_t k = 0; k < mesh.positions.size(); ++k) {
-            glm::dvec3 p = place(mesh.positions[k]);
-            v[3 * k] = float(p.x);
-            v[3 * k + 1] = float(p.y);
-            v[3 * k + 2] = float(p.z);
-        }
-        for (size_t k = 0; k < mesh.triangles.size(); ++k)
-            for (int c = 0; c < 3; ++c) ix[3 * k + size_t(c)] = mesh.triangles[k][size_t(c)];
-        rtcCommitGeometry(geom);
-        return geom;
-    }
-
-    RTCScene prototype(const Mesh* mesh) {
-        auto it = prototypes.find(mesh);
-        if (it != prototypes.end()) return it->second;
-        RTCScene s = rtcNewScene(device);
-        rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
-        RTCGeometry g = makeTriangles(*mesh, [](const glm::dvec3& p) { return p; });
-        rtcAttachGeometryByID(s, g, 0);
-        rtcReleaseGeometry(g);
-        rtcCommitScene(s);
-        prototypes.emplace(mesh, s);
-        return s;
-    }
-
-    RTCScene buildWindowScene(const BakeWindow& w) {
-        RTCScene scene = rtcNewScene(device);
-        rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
-        for (size_t k = 0; k < w.objects.size(); ++k) {
-            const WindowObject& o = w.objects[k];
-            RTCGeometry g;
-            if (o.kind == ChunkObject::Kind::Terrain) {
-                g = makeTriangles(*o.mesh, [&](const glm::dvec3& p) { return o.lsTransform.apply(p); });
-            } else {
-                g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
-                rtcSetGeometryInstancedScene(g, prototype(o.mesh));
-                // Column-major 3x4: the columns are our rows (p' = p.x r0 + p.y r1 + p.z r2 + r3).
-                float xfm[12];
-                for (int r = 0; r < 4; ++r)
-                    for (int c = 0; c < 3; ++c) xfm[3 * r + c] = float(o.lsTransform.rows[size_t(r)][c]);
-                rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
-                rtcCommitGeometry(g);
-            }
-            rtcAttachGeometryByID(scene, g, unsigned(k));
-            rtcReleaseGeometry(g);
-        }
-        rtcCommitScene(scene);
-        return scene;
-    }
 };
 
 RaycastStage::RaycastStage(RaycastOptions options) : impl_(std::make_unique<Impl>()) {
     impl_->opt = options;
     std::string config = options.threads > 0 ? "threads=" + std::to_string(options.threads) : "";
     impl_->device = rtcNewDevice(config.c_str());
-    if (impl_->device) rtcSetDeviceErrorFunction(impl_->device, &Impl::onError, impl_.get());
+    if (impl_->device) {
+        rtcSetDeviceErrorFunction(impl_->device, &Impl::onError, impl_.get());
+        impl_->scenes = std::make_unique<EmbreeScenes>(impl_->device);
+    }
 }
 
 RaycastStage::~RaycastStage() = default;
@@ -217,8 +133,7 @@ struct Tracer {
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(scene, ctx, &rh);
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
-        const unsigned inst = rh.hit.instID[0];
-        return Hit{rh.ray.tfar, inst != RTC_INVALID_GEOMETRY_ID ? inst : rh.hit.geomID, rh.hit.primID};
+        return Hit{rh.ray.tfar, hitObject(rh.hit.instID[0], rh.hit.geomID), rh.hit.primID};
     }
 
     // Traces towards `target` on (object, group); returns a witness or nothing. Counts the
@@ -330,7 +245,7 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
 
     RTCScene scene = nullptr;
     try {
-        scene = im.buildWindowScene(window);
+        scene = im.scenes->buildWindow(window);
         if (Status s = im.takeError(); !s) {
             if (scene) rtcReleaseScene(scene);
             return s;
