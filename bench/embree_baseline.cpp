@@ -1,9 +1,10 @@
 // The bare Embree loop that the pipeline's raycast stage is compared with (issue 6: "rays/s
 // at least half of a bare Embree occlusion loop over the same scene").
 //
-// The scene is built exactly as raycast/raycast_stage.cpp builds a window's scene: one
-// Embree scene per mesh resource (RTC_SCENE_FLAG_ROBUST | CONTEXT_FILTER_FUNCTION), placed
-// by instances, terrain as plain triangles in window-local floats. The rays are the ones
+// The scene is the one raycast/raycast_stage.cpp traces, built by the same code
+// (raycast/embree_scene.h): one Embree scene per mesh resource and per terrain
+// (RTC_SCENE_FLAG_ROBUST | CONTEXT_FILTER_FUNCTION), placed by instances in window-local
+// floats; the loops trace its full version (every triangle). The rays are the ones
 // the stage would cast in that window: for every primitive group of the centre chunk and
 // every light that reaches it, rays from the light through the group's sample points
 // (raycast::sampleGroup, 256 area + up to 1024 feature samples); directional rays start
@@ -137,7 +138,8 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
     const auto tBuild = std::chrono::steady_clock::now();
     // The stage's own scene code (raycast/embree_scene.h), so both trace the same scene.
     auto scenes = std::make_unique<raycast::EmbreeScenes>(device);
-    RTCScene scene = scenes->buildWindow(w);
+    raycast::WindowScene windowScene = scenes->buildWindow(w);
+    RTCScene scene = windowScene.all();
     uint64_t windowTriangles = 0;
     std::unordered_set<const Mesh*> uniqueMeshes;
     for (const WindowObject& o : w.objects) {
@@ -356,7 +358,7 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
         }
         return visited;
     });
-    rtcReleaseScene(scene);
+    windowScene.reset();
     scenes.reset();  // its prototypes, before the device
     rtcReleaseDevice(device);
     return out;

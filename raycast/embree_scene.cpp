@@ -1,5 +1,8 @@
 #include "raycast/embree_scene.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include <pmmintrin.h>
 #include <xmmintrin.h>
 
@@ -7,14 +10,16 @@ namespace shadowcull::raycast {
 
 namespace {
 
-// Triangle geometry with vertices given by `place` (float, as Embree wants them).
+// Triangle geometry of the mesh's triangles `subset` (all when empty), vertices given by
+// `place` (float, as Embree wants them).
 template <class Place>
-RTCGeometry makeTriangles(RTCDevice device, const Mesh& mesh, Place place) {
+RTCGeometry makeTriangles(RTCDevice device, const Mesh& mesh, const std::vector<uint32_t>& subset, Place place) {
     RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    const size_t count = subset.empty() ? mesh.triangles.size() : subset.size();
     auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                                           3 * sizeof(float), mesh.positions.size()));
-    auto* ix = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                              3 * sizeof(unsigned), mesh.triangles.size()));
+    auto* ix = static_cast<unsigned*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), count));
     if (!v || !ix) return geom;
     for (size_t k = 0; k < mesh.positions.size(); ++k) {
         glm::dvec3 p = place(mesh.positions[k]);
@@ -22,8 +27,10 @@ RTCGeometry makeTriangles(RTCDevice device, const Mesh& mesh, Place place) {
         v[3 * k + 1] = float(p.y);
         v[3 * k + 2] = float(p.z);
     }
-    for (size_t k = 0; k < mesh.triangles.size(); ++k)
-        for (int c = 0; c < 3; ++c) ix[3 * k + size_t(c)] = mesh.triangles[k][size_t(c)];
+    for (size_t k = 0; k < count; ++k) {
+        const auto& tri = mesh.triangles[subset.empty() ? k : subset[k]];
+        for (int c = 0; c < 3; ++c) ix[3 * k + size_t(c)] = tri[size_t(c)];
+    }
     rtcCommitGeometry(geom);
     return geom;
 }
@@ -31,45 +38,77 @@ RTCGeometry makeTriangles(RTCDevice device, const Mesh& mesh, Place place) {
 }  // namespace
 
 EmbreeScenes::~EmbreeScenes() {
-    for (auto& [mesh, scene] : prototypes_) rtcReleaseScene(scene);
+    for (auto& [mesh, proto] : prototypes_) {
+        if (proto.opaque && proto.opaque != proto.all) rtcReleaseScene(proto.opaque);
+        rtcReleaseScene(proto.all);
+    }
 }
 
-RTCScene EmbreeScenes::prototype(const Mesh* mesh) {
+const EmbreeScenes::Prototype& EmbreeScenes::prototype(const Mesh* mesh, bool terrain) {
     auto it = prototypes_.find(mesh);
     if (it != prototypes_.end()) return it->second;
-    RTCScene s = rtcNewScene(device_);
-    rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
-    RTCGeometry g = makeTriangles(device_, *mesh, [](const glm::dvec3& p) { return p; });
-    rtcAttachGeometryByID(s, g, 0);
-    rtcReleaseGeometry(g);
-    rtcCommitScene(s);
-    prototypes_.emplace(mesh, s);
-    return s;
+    Prototype proto;
+    if (terrain && !mesh->positions.empty()) {
+        // Whole metres: exact in the instance's float translation, and the same floats
+        // for a terrain lifted by whole metres.
+        double lo = mesh->positions[0].y, hi = lo;
+        for (const glm::dvec3& p : mesh->positions) {
+            lo = std::min(lo, p.y);
+            hi = std::max(hi, p.y);
+        }
+        proto.offset.y = std::round(0.5 * (lo + hi));
+    }
+    const glm::dvec3 offset = proto.offset;
+    auto makeScene = [&](const std::vector<uint32_t>& subset) {
+        RTCScene s = rtcNewScene(device_);
+        rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+        RTCGeometry g = makeTriangles(device_, *mesh, subset, [&](const glm::dvec3& p) { return p - offset; });
+        rtcAttachGeometryByID(s, g, 0);
+        rtcReleaseGeometry(g);
+        rtcCommitScene(s);
+        return s;
+    };
+    proto.all = makeScene({});
+    std::vector<uint32_t> opaque;
+    for (uint32_t t = 0; t < mesh->triangles.size(); ++t)
+        if (!mesh->groups[mesh->triangleGroup[t]].alphaTested) opaque.push_back(t);
+    if (opaque.size() == mesh->triangles.size())
+        proto.opaque = proto.all;
+    else if (!opaque.empty())
+        proto.opaque = makeScene(opaque);
+    return prototypes_.emplace(mesh, proto).first->second;
 }
 
-RTCScene EmbreeScenes::buildWindow(const BakeWindow& w) {
+RTCScene EmbreeScenes::placeAll(const BakeWindow& w, bool opaque) {
     RTCScene scene = rtcNewScene(device_);
     rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
     for (size_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
-        RTCGeometry g;
-        if (o.kind == ChunkObject::Kind::Terrain) {
-            g = makeTriangles(device_, *o.mesh, [&](const glm::dvec3& p) { return o.lsTransform.apply(p); });
-        } else {
-            g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
-            rtcSetGeometryInstancedScene(g, prototype(o.mesh));
-            // Column-major 3x4: the columns are our rows (p' = p.x r0 + p.y r1 + p.z r2 + r3).
-            float xfm[12];
-            for (int r = 0; r < 4; ++r)
-                for (int c = 0; c < 3; ++c) xfm[3 * r + c] = float(o.lsTransform.rows[size_t(r)][c]);
-            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
-            rtcCommitGeometry(g);
+        const Prototype& proto = prototype(o.mesh, o.kind == ChunkObject::Kind::Terrain);
+        RTCScene placed = opaque ? proto.opaque : proto.all;
+        if (!placed) continue;  // nothing opaque in it
+        RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(g, placed);
+        // Column-major 3x4: the columns are our rows (p' = p.x r0 + p.y r1 + p.z r2 + r3).
+        // Terrain's linear part is the identity, so its offset moves into the translation.
+        float xfm[12];
+        for (int r = 0; r < 4; ++r) {
+            glm::dvec3 row = o.lsTransform.rows[size_t(r)];
+            if (r == 3) row += proto.offset;
+            for (int c = 0; c < 3; ++c) xfm[3 * r + c] = float(row[c]);
         }
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
+        rtcCommitGeometry(g);
         rtcAttachGeometryByID(scene, g, unsigned(k));
         rtcReleaseGeometry(g);
     }
     rtcCommitScene(scene);
     return scene;
+}
+
+WindowScene EmbreeScenes::buildWindow(const BakeWindow& w) {
+    RTCScene all = placeAll(w, false);
+    return WindowScene(all, w.hasAlphaTested ? placeAll(w, true) : all);
 }
 
 void skipAlphaTested(const RTCFilterFunctionNArguments* args) {

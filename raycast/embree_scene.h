@@ -1,8 +1,10 @@
 // Embree scenes of bake windows, shared by the raycast stage and the bench's bare-Embree
-// loops (so both trace the same scene): one prototype scene per mesh, built once and kept
-// for the whole bake, placed in each window by instances; terrain as plain triangles.
-// The geometry ID of a window object is its index in BakeWindow::objects (an instance's
-// in hit.instID[0], a terrain's in hit.geomID). Internal to raycast/ and bench/: it
+// loops (so both trace the same scene): one prototype scene per mesh (models) and per
+// heightfield (terrain), built once and kept for the whole bake, placed in each window by
+// instances. Moving the window to the next chunk rebuilds only the window's top-level
+// trees over its instances (about 2 ms for 2,500 instances); every mesh's own tree stays.
+// The instance ID of a window object is its index in BakeWindow::objects
+// (hit.instID[0]). Internal to raycast/ and bench/: it
 // exposes Embree types.
 #pragma once
 
@@ -14,6 +16,40 @@
 
 namespace shadowcull::raycast {
 
+// A window's two scenes. `all`: every triangle, for closest hits (p with the alpha filter,
+// the receivers behind it without). `opaque`: the same instances without their alpha-
+// tested triangles, for occlusion tests where light passes those (no filter needed, so
+// Embree's packet kernels run unhindered). The same scene twice when nothing in the
+// window is alpha-tested. Move-only; releases both.
+class WindowScene {
+public:
+    WindowScene() = default;
+    WindowScene(RTCScene all, RTCScene opaque) : all_(all), opaque_(opaque) {}
+    ~WindowScene() { reset(); }
+    WindowScene(WindowScene&& o) noexcept : all_(o.all_), opaque_(o.opaque_) { o.all_ = o.opaque_ = nullptr; }
+    WindowScene& operator=(WindowScene&& o) noexcept {
+        if (this != &o) {
+            reset();
+            all_ = o.all_;
+            opaque_ = o.opaque_;
+            o.all_ = o.opaque_ = nullptr;
+        }
+        return *this;
+    }
+    WindowScene(const WindowScene&) = delete;
+    WindowScene& operator=(const WindowScene&) = delete;
+    RTCScene all() const { return all_; }
+    RTCScene opaque() const { return opaque_; }
+    void reset() {
+        if (opaque_ && opaque_ != all_) rtcReleaseScene(opaque_);
+        if (all_) rtcReleaseScene(all_);
+        all_ = opaque_ = nullptr;
+    }
+
+private:
+    RTCScene all_ = nullptr, opaque_ = nullptr;
+};
+
 class EmbreeScenes {
 public:
     explicit EmbreeScenes(RTCDevice device) : device_(device) {}
@@ -21,13 +57,22 @@ public:
     EmbreeScenes(const EmbreeScenes&) = delete;
     EmbreeScenes& operator=(const EmbreeScenes&) = delete;
 
-    // The committed scene of the window; the caller releases it (rtcReleaseScene).
-    RTCScene buildWindow(const BakeWindow& window);
+    // The committed scenes of the window.
+    WindowScene buildWindow(const BakeWindow& window);
 
 private:
-    RTCScene prototype(const Mesh* mesh);
+    // A mesh's scenes, in mesh coordinates less `offset` (terrain: its rounded middle
+    // height, so that a lifted terrain gives the same floats; models: zero). `opaque`:
+    // without the alpha-tested triangles (== `all` when there are none; nullptr when
+    // every triangle is alpha-tested).
+    struct Prototype {
+        RTCScene all = nullptr, opaque = nullptr;
+        glm::dvec3 offset{0.0};
+    };
+    const Prototype& prototype(const Mesh* mesh, bool terrain);
+    RTCScene placeAll(const BakeWindow& w, bool opaque);
     RTCDevice device_;
-    std::unordered_map<const Mesh*, RTCScene> prototypes_;
+    std::unordered_map<const Mesh*, Prototype> prototypes_;
 };
 
 // The index in BakeWindow::objects of the object a hit lies on.

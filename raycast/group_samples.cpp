@@ -26,8 +26,7 @@ struct Tri {
 
 }  // namespace
 
-std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, int areaSamples, int maxFeatureSamples) {
-    const Mesh& mesh = *object.mesh;
+std::vector<glm::dvec3> sampleMeshGroup(const Mesh& mesh, uint32_t group, int areaSamples, int maxFeatureSamples) {
     std::vector<Tri> tris;
     std::vector<double> cumulative;  // cumulative area
     double total = 0.0;
@@ -36,7 +35,7 @@ std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, 
         const auto& i = mesh.triangles[t];
         const glm::dvec3 &a = mesh.positions[i[0]], &b = mesh.positions[i[1]], &c = mesh.positions[i[2]];
         if (hasRepeatedVertex(a, b, c)) continue;
-        Tri tri{object.lsTransform.apply(a), object.lsTransform.apply(b), object.lsTransform.apply(c)};
+        Tri tri{a, b, c};
         total += 0.5 * glm::length(glm::cross(tri.b - tri.a, tri.c - tri.a));
         tris.push_back(tri);
         cumulative.push_back(total);
@@ -83,6 +82,36 @@ std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, 
         }
     }
     return out;
+}
+
+namespace {
+
+std::vector<glm::dvec3> place(const WindowObject& object, std::vector<glm::dvec3> points) {
+    for (glm::dvec3& p : points) p = object.lsTransform.apply(p);
+    return points;
+}
+
+}  // namespace
+
+std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, int areaSamples, int maxFeatureSamples) {
+    return place(object, sampleMeshGroup(*object.mesh, group, areaSamples, maxFeatureSamples));
+}
+
+std::vector<glm::dvec3> GroupSampleCache::placed(const WindowObject& object, uint32_t group) {
+    const std::vector<glm::dvec3>* local = nullptr;
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        auto key = std::make_pair(object.mesh, group);
+        auto it = local_.find(key);
+        if (it == local_.end()) it = local_.emplace(key, sampleMeshGroup(*object.mesh, group, area_, features_)).first;
+        local = &it->second;  // std::map nodes stay put; entries are never changed again
+    }
+    return place(object, *local);
+}
+
+size_t GroupSampleCache::meshGroups() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return local_.size();
 }
 
 }  // namespace shadowcull::raycast

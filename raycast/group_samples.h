@@ -1,6 +1,9 @@
 // Sample points on a primitive group, aimed at by witness rays.
 #pragma once
 
+#include <map>
+#include <mutex>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -9,13 +12,34 @@
 
 namespace shadowcull::raycast {
 
-// Points on the group's triangles (window-local, metres), in an order where every prefix is
+// Points on the group's triangles (mesh coordinates), in an order where every prefix is
 // spread over the group: first `areaSamples` points distributed by area (stratified along
 // the cumulative area with a van der Corput sequence, so small triangles such as a 5 mm
 // rod still get their share), then every triangle's vertices and edge midpoints nudged
 // 0.1% into the triangle (so a ray aimed there hits this triangle, not the neighbour or
 // the silhouette), up to `maxFeatureSamples`. Triangles that repeat a vertex get none.
-// Deterministic: the same group gives the same points.
+// Deterministic: the same group gives the same points. The area is measured in mesh
+// coordinates, so every placement of a mesh gets the same points (spread by placed area as
+// long as the placement scales uniformly).
+std::vector<glm::dvec3> sampleMeshGroup(const Mesh& mesh, uint32_t group, int areaSamples, int maxFeatureSamples);
+
+// The same points placed in the window (window-local, metres).
 std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, int areaSamples, int maxFeatureSamples);
+
+// sampleMeshGroup once per (mesh, group) for a whole bake: placements of a mesh share
+// their points, and only the placement is computed per window. Keyed by the mesh's
+// address, so one cache serves one loaded space. Thread-safe.
+class GroupSampleCache {
+public:
+    GroupSampleCache(int areaSamples, int maxFeatureSamples) : area_(areaSamples), features_(maxFeatureSamples) {}
+    // The object's group's points, window-local.
+    std::vector<glm::dvec3> placed(const WindowObject& object, uint32_t group);
+    size_t meshGroups() const;
+
+private:
+    int area_, features_;
+    mutable std::mutex mutex_;
+    std::map<std::pair<const Mesh*, uint32_t>, std::vector<glm::dvec3>> local_;  // nodes never move
+};
 
 }  // namespace shadowcull::raycast

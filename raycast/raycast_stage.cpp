@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <mutex>
 
 #include <embree3/rtcore.h>
@@ -45,6 +46,7 @@ struct RaycastStage::Impl {
     RaycastOptions opt;
     RTCDevice device = nullptr;
     std::unique_ptr<EmbreeScenes> scenes;  // prototypes kept for the whole bake
+    std::unique_ptr<GroupSampleCache> samples;  // per mesh, for the whole bake
     std::mutex errorMutex;
     std::string lastError;
 
@@ -70,6 +72,7 @@ struct RaycastStage::Impl {
 
 RaycastStage::RaycastStage(RaycastOptions options) : impl_(std::make_unique<Impl>()) {
     impl_->opt = options;
+    impl_->samples = std::make_unique<GroupSampleCache>(options.areaSamples, options.maxFeatureSamples);
     std::string config = options.threads > 0 ? "threads=" + std::to_string(options.threads) : "";
     impl_->device = rtcNewDevice(config.c_str());
     if (impl_->device) {
@@ -85,7 +88,8 @@ namespace {
 // Everything one witness search needs about the window, in window-local double.
 struct Tracer {
     const BakeWindow& w;
-    RTCScene scene;
+    RTCScene scene;   // every triangle
+    RTCScene opaque;  // without alpha-tested triangles
     const RaycastOptions& opt;
     double eps;        // metres: margin on depth, range and terrain comparisons
     double backDist;   // directional lights: ray origins this far before the sample
@@ -136,24 +140,112 @@ struct Tracer {
         return Hit{rh.ray.tfar, hitObject(rh.hit.instID[0], rh.hit.geomID), rh.hit.primID};
     }
 
+    // The line from the light through `target`: origin, unit direction, the distance to
+    // the target and the ray's far end. False when the target is (almost) at the light.
+    bool line(const Light& L, const glm::dvec3& target, glm::dvec3& origin, glm::dvec3& dir, double& tTarget,
+              double& tfar) const {
+        if (L.type == LightType::Directional) {
+            dir = L.direction;
+            origin = target - dir * backDist;
+            tTarget = backDist;
+            tfar = 2 * backDist;
+            return true;
+        }
+        origin = L.position;
+        const glm::dvec3 v = target - origin;
+        tTarget = glm::length(v);
+        if (!(tTarget > eps)) return false;
+        dir = v / tTarget;
+        tfar = L.range;
+        return true;
+    }
+
+    // Where the line enters the object's window-local bounds (0 when it starts inside;
+    // infinity when it misses them, which rounding can do for a target on the boundary).
+    static double entryDistance(const Aabb& box, const glm::dvec3& origin, const glm::dvec3& dir) {
+        double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
+        for (int a = 0; a < 3; ++a) {
+            if (dir[a] == 0.0) {
+                if (origin[a] < box.min[a] || origin[a] > box.max[a]) return t1;
+                continue;
+            }
+            double ta = (box.min[a] - origin[a]) / dir[a], tb = (box.max[a] - origin[a]) / dir[a];
+            if (ta > tb) std::swap(ta, tb);
+            t0 = std::max(t0, ta);
+            t1 = std::min(t1, tb);
+        }
+        return t0 <= t1 ? t0 : std::numeric_limits<double>::infinity();
+    }
+
+    // Which of `count` (<= 16) targets on `object` may be p: false when an opaque surface
+    // blocks the line before it reaches the object's bounds (by more than 2 eps), so that
+    // the first opaque hit cannot be on the object. A pre-filter only: a target that passes
+    // is decided by tryRay's closest hits alone. One rtcOccluded16 packet on the window's
+    // opaque scene (alpha-tested triangles left out: light passes them; the object itself
+    // cannot be hit before its bounds, so no filter is needed). The rays of a packet share
+    // the light and aim at one group. Counts the packet's rays in `raysCast`.
+    void clearSegments(const Light& L, uint32_t object, const glm::dvec3* targets, int count, bool* clear,
+                       uint64_t* raysCast) const {
+        alignas(64) RTCRay16 packet;
+        alignas(64) int valid[16];
+        const Aabb& box = w.objects[object].lsBounds;
+        for (int k = 0; k < 16; ++k) {
+            valid[k] = 0;
+            clear[k] = false;
+            packet.tnear[k] = 0.0f;
+            packet.time[k] = 0.0f;
+            packet.mask[k] = 0xffffffffu;
+            packet.id[k] = unsigned(k);
+            packet.flags[k] = 0;
+            if (k >= count) continue;
+            glm::dvec3 origin, dir;
+            double tTarget, tfar;
+            if (!line(L, targets[k], origin, dir, tTarget, tfar)) continue;
+            clear[k] = true;
+            const double tClear = std::min(tTarget, entryDistance(box, origin, dir)) - 2 * eps;
+            if (!(tClear > 0)) continue;  // nothing to test: the line starts at the object
+            valid[k] = -1;
+            packet.org_x[k] = float(origin.x);
+            packet.org_y[k] = float(origin.y);
+            packet.org_z[k] = float(origin.z);
+            packet.dir_x[k] = float(dir.x);
+            packet.dir_y[k] = float(dir.y);
+            packet.dir_z[k] = float(dir.z);
+            packet.tfar[k] = float(tClear);
+            ++*raysCast;
+        }
+        // Inactive lanes copy an active one, so that every lane holds a valid ray (Embree's
+        // packet kernels compute on all 16 and only mask the results).
+        int first = 0;
+        while (first < 16 && !valid[first]) ++first;
+        if (first == 16) return;
+        for (int k = 0; k < 16; ++k) {
+            if (valid[k]) continue;
+            packet.org_x[k] = packet.org_x[first];
+            packet.org_y[k] = packet.org_y[first];
+            packet.org_z[k] = packet.org_z[first];
+            packet.dir_x[k] = packet.dir_x[first];
+            packet.dir_y[k] = packet.dir_y[first];
+            packet.dir_z[k] = packet.dir_z[first];
+            packet.tfar[k] = packet.tfar[first];
+        }
+        // Incoherent mode (the default): with RTC_INTERSECT_CONTEXT_FLAG_COHERENT,
+        // Embree 3.13.5 never returned from one packet of the two-floating-cubes scene
+        // (tests/bake_test.cpp, KnownAnswers.FloatingCubes...).
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        rtcOccluded16(valid, opaque, &ctx, &packet);
+        for (int k = 0; k < count; ++k)
+            if (valid[k] && packet.tfar[k] < 0) clear[k] = false;  // Embree sets tfar to -inf on a hit
+    }
+
     // Traces towards `target` on (object, group); returns a witness or nothing. Counts the
     // Embree calls in `raysCast`.
     std::optional<Witness> tryRay(const Light& L, uint32_t object, uint32_t group, const glm::dvec3& target,
                                   uint64_t* raysCast) const {
         glm::dvec3 origin, dir;
-        double tfar;
-        if (L.type == LightType::Directional) {
-            dir = L.direction;
-            origin = target - dir * backDist;
-            tfar = 2 * backDist;
-        } else {
-            origin = L.position;
-            glm::dvec3 v = target - origin;
-            double d = glm::length(v);
-            if (!(d > eps)) return std::nullopt;
-            dir = v / d;
-            tfar = L.range;
-        }
+        double tTarget, tfar;
+        if (!line(L, target, origin, dir, tTarget, tfar)) return std::nullopt;
         // p: the closest hit, alpha-tested groups other than this one let light pass.
         AlphaSkip skip;
         rtcInitIntersectContext(&skip.ctx);
@@ -243,17 +335,13 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
     if (!im.device) return makeError(ErrorKind::Internal, "", 0, "Embree device could not be created");
     if (searches.empty()) return Status::ok();
 
-    RTCScene scene = nullptr;
     try {
-        scene = im.scenes->buildWindow(window);
-        if (Status s = im.takeError(); !s) {
-            if (scene) rtcReleaseScene(scene);
-            return s;
-        }
+        WindowScene scene = im.scenes->buildWindow(window);
+        if (Status s = im.takeError(); !s) return s;
         // Margin: well above float rounding of window-local coordinates (~6e-8 relative).
         const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
         const double diag = glm::length(window.lsBounds.max - window.lsBounds.min);
-        Tracer tracer{window, scene, im.opt, 1e-6 * (std::max({ext.x, ext.y, ext.z}) + diag) + 1e-6, diag + 1.0};
+        Tracer tracer{window, scene.all(), scene.opaque(), im.opt, 1e-6 * (std::max({ext.x, ext.y, ext.z}) + diag) + 1e-6, diag + 1.0};
         for (const Light& L : window.lsLights)
             if (L.type != LightType::Directional)
                 tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
@@ -264,9 +352,7 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
             WitnessSearch& task = searches[ti];
             const ObjectVerdicts& ov = cv.objects[task.object];
             const uint32_t object = uint32_t(ov.windowObject);
-            if (task.targets.empty())
-                task.targets = sampleGroup(window.objects[object], uint32_t(task.group), im.opt.areaSamples,
-                                           im.opt.maxFeatureSamples);
+            if (task.targets.empty()) task.targets = im.samples->placed(window.objects[object], uint32_t(task.group));
             uint64_t localRays = 0;
             for (int l = 0; l < cv.lightCount; ++l) {
                 if (task.light >= 0 && l != task.light) continue;
@@ -274,24 +360,34 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                 if (d.verdict != Verdict::Undecided) continue;
                 ++examined;
                 const Light& L = window.lsLights[size_t(l)];
-                for (const glm::dvec3& s : task.targets) {
-                    if (std::optional<Witness> wit = tracer.tryRay(L, object, uint32_t(task.group), s, &localRays)) {
-                        decide(d, Verdict::Kept, "raycast", reason, std::move(wit));
-                        ++kept;
-                        break;
+                // Targets in packets of 16: an occlusion packet drops those whose line is
+                // blocked before the group (most of them where a bit ends undecided), then
+                // closest hits examine the rest in order until one is a witness.
+                const std::vector<glm::dvec3>& targets = task.targets;
+                bool found = false;
+                for (size_t b = 0; b < targets.size() && !found; b += 16) {
+                    const int count = int(std::min<size_t>(16, targets.size() - b));
+                    bool clear[16];
+                    tracer.clearSegments(L, object, &targets[b], count, clear, &localRays);
+                    for (int k = 0; k < count && !found; ++k) {
+                        if (!clear[k]) continue;
+                        if (std::optional<Witness> wit =
+                                tracer.tryRay(L, object, uint32_t(task.group), targets[b + size_t(k)], &localRays)) {
+                            decide(d, Verdict::Kept, "raycast", reason, std::move(wit));
+                            ++kept;
+                            found = true;
+                        }
                     }
                 }
             }
             rays += localRays;
         });
-        rtcReleaseScene(scene);
-        scene = nullptr;
+        scene.reset();
         stats.raysCast += rays;
         stats.provedKept += kept;
         stats.bitsExamined += examined;
         if (Status s = im.takeError(); !s) return s;
     } catch (const std::exception& e) {
-        if (scene) rtcReleaseScene(scene);
         return makeError(ErrorKind::Internal, "", 0, std::string("raycast stage: ") + e.what());
     }
     stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

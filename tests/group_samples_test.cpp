@@ -85,3 +85,21 @@ TEST(GroupSamples, DegenerateTrianglesGetNoSamplesAndSamplingIsDeterministic) {
     o.mesh = &only;
     EXPECT_TRUE(raycast::sampleGroup(o, 0, 32, 32).empty());
 }
+
+TEST(GroupSamples, TheCacheSamplesEachMeshOnceAndPlacesItPerObject) {
+    Mesh m = twoGroupMesh();
+    WindowObject a, b;
+    a.mesh = b.mesh = &m;
+    a.lsTransform.rows[3] = glm::dvec3(100, 5, -3);
+    b.lsTransform.rows[0] = glm::dvec3(0, 0, 1);  // a quarter turn about y, elsewhere
+    b.lsTransform.rows[2] = glm::dvec3(-1, 0, 0);
+    b.lsTransform.rows[3] = glm::dvec3(-40, 2, 7);
+    raycast::GroupSampleCache cache(32, 100);
+    for (const WindowObject* o : {&a, &b})
+        for (uint32_t g : {0u, 1u}) EXPECT_EQ(cache.placed(*o, g), raycast::sampleGroup(*o, g, 32, 100));
+    EXPECT_EQ(cache.meshGroups(), 2u);  // one entry per (mesh, group), not per placement
+    // The same mesh points, placed: b's first point is a's first point moved by b's placement.
+    const glm::dvec3 local = raycast::sampleMeshGroup(m, 0, 32, 100)[0];
+    EXPECT_EQ(cache.placed(b, 0)[0], b.lsTransform.apply(local));
+    EXPECT_EQ(cache.placed(a, 0)[0], a.lsTransform.apply(local));
+}
