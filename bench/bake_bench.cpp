@@ -429,7 +429,7 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
                 auto& m = perLight[k % nl];
                 if (d.verdict == Verdict::Undecided) ++m["undecided"];
                 else if (d.verdict == Verdict::Kept) ++m["kept"];
-                else ++m["culled:" + d.stage];
+                else ++m["culled:" + std::string(d.stage)];
             }
     for (size_t l = 0; l < nl; ++l)
         lights.push_back({{"name", r->settings.lights[l].name},

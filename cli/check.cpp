@@ -67,17 +67,17 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
                     if (!gpuOne && ad.verdict == Verdict::Kept) {
                         ++falseCulls;
                         kind = "GPU false cull";
-                        evidence = "witness: origin " + vec(ad.witness->wsOrigin) + " direction " + vec(ad.witness->wsDirection) +
-                                   ", p " + vec(ad.witness->wsP) + ", q " + vec(ad.witness->wsQ) + " on " + ad.witness->receiver;
+                        evidence = "witness: origin " + vec(ad.witness()->wsOrigin) + " direction " + vec(ad.witness()->wsDirection) +
+                                   ", p " + vec(ad.witness()->wsP) + ", q " + vec(ad.witness()->wsQ) + " on " + ad.witness()->receiver;
                     } else if (gpuOne && ad.verdict == Verdict::Culled) {
                         ++falseKeeps;
                         kind = "GPU false keep";
-                        evidence = "proof (" + ad.stage + "): " + ad.reason;
+                        evidence = "proof (" + std::string(ad.stage) + "): " + std::string(ad.reason());
                     } else if (ad.verdict == Verdict::Undecided) {
                         ++undecided;
                         if (gpuOne) continue;  // both write 1: nothing to look at
                         kind = "undecided";
-                        evidence = "the analytic pipeline could not decide; the GPU method culled it (" + gd.reason + ")";
+                        evidence = "the analytic pipeline could not decide; the GPU method culled it (" + std::string(gd.reason()) + ")";
                     } else {
                         continue;
                     }

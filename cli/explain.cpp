@@ -48,15 +48,15 @@ std::vector<std::string> chunkFiles(const std::string& spaceDir) {
 void explainBit(const Decision& d, std::ostream& out) {
     switch (d.verdict) {
         case Verdict::Undecided: out << "undecided, kept as 1 (no stage could decide)\n"; return;
-        case Verdict::Culled: out << "culled, stage " << d.stage << "\n    proof: " << d.reason << "\n"; return;
+        case Verdict::Culled: out << "culled, stage " << d.stage << "\n    proof: " << d.reason() << "\n"; return;
         case Verdict::Kept: break;
     }
     out << "kept, stage " << d.stage << "\n";
-    if (!d.witness) {
-        out << "    " << (d.reason.empty() ? "no witness recorded" : d.reason) << "\n";
+    if (!d.witness()) {
+        out << "    " << (d.reason().empty() ? std::string_view("no witness recorded") : d.reason()) << "\n";
         return;
     }
-    const Witness& w = *d.witness;
+    const Witness& w = *d.witness();
     const glm::dvec3 dir = glm::length(w.wsDirection) > 0 ? glm::normalize(w.wsDirection) : w.wsDirection;
     out << "    witness ray: origin " << vecText(w.wsOrigin) << ", direction " << vecText(w.wsDirection) << "\n"
         << "      p " << vecText(w.wsP) << ": first hit on the group, lit\n"

@@ -50,7 +50,7 @@ std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdic
             bool reachCulledAll = true;
             for (const ObjectVerdicts& ov : cv.objects)
                 for (int g = 0; g < ov.groupCount; ++g) {
-                    const std::string& stage = ov.decisions[size_t(g) * size_t(cv.lightCount) + l].stage;
+                    const std::string_view stage = ov.decisions[size_t(g) * size_t(cv.lightCount) + l].stage;
                     reachCulledAll &= stage == "reach" || stage == "input";
                 }
             if (reachCulledAll) {

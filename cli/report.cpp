@@ -12,8 +12,8 @@ BitCounts countBits(const BakeResult& r) {
             for (const Decision& d : ov.decisions) {
                 ++c.bits;
                 switch (d.verdict) {
-                    case Verdict::Culled: ++c.culled; ++c.culledBy[d.stage]; break;
-                    case Verdict::Kept: ++c.kept; ++c.provedKept; ++c.keptBy[d.stage]; break;
+                    case Verdict::Culled: ++c.culled; ++c.culledBy[std::string(d.stage)]; break;
+                    case Verdict::Kept: ++c.kept; ++c.provedKept; ++c.keptBy[std::string(d.stage)]; break;
                     case Verdict::Undecided: ++c.kept; ++c.undecided; break;
                 }
             }
@@ -110,10 +110,10 @@ nlohmann::json resultsJson(const BakeResult& r) {
                     jb["light"] = l + 1;
                     jb["bit"] = d.verdict == Verdict::Culled ? 0 : 1;
                     jb["verdict"] = verdictName(d.verdict);
-                    if (!d.stage.empty()) jb["stage"] = d.stage;
-                    if (!d.reason.empty()) jb["reason"] = d.reason;
-                    if (d.witness) {
-                        const Witness& w = *d.witness;
+                    if (!d.stage.empty()) jb["stage"] = std::string(d.stage);
+                    if (!d.reason().empty()) jb["reason"] = std::string(d.reason());
+                    if (const Witness* wp = d.witness()) {
+                        const Witness& w = *wp;
                         jb["witness"] = {{"origin", vec(w.wsOrigin)}, {"direction", vec(w.wsDirection)},
                                          {"p", vec(w.wsP)}, {"q", vec(w.wsQ)}, {"receiver", w.receiver}};
                     }

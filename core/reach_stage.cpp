@@ -49,6 +49,12 @@ std::vector<bool> lightsWithUndecided(const ChunkVerdicts& verdicts) {
 
 Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();
+    // One "beyond the range" reason per light, shared by every bit it decides (most bits of
+    // a large world are decided here; their reason costs no memory of its own).
+    std::vector<std::shared_ptr<const Evidence>> beyondRange(window.lsLights.size());
+    for (size_t l = 0; l < beyondRange.size(); ++l)
+        beyondRange[l] = std::make_shared<const Evidence>(
+            Evidence{"the group lies beyond the light's range (" + formatNumber(window.lsLights[l].range) + " m)", {}});
     for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
         ObjectVerdicts& ov = cv.objects[oi];
         if (ov.windowObject < 0) continue;
@@ -79,8 +85,7 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
                 } else if (!lightsReach_) {
                     continue;
                 } else if (boxBeyondRange(L, gb)) {
-                    decide(d, Verdict::Culled, name(),
-                           "the group lies beyond the light's range (" + formatNumber(L.range) + " m)");
+                    decide(d, Verdict::Culled, name(), beyondRange[size_t(l)]);
                 } else if (boxOutsideCone(L, gb)) {
                     decide(d, Verdict::Culled, name(), "the group lies outside the light's cone");
                 } else {

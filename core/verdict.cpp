@@ -4,6 +4,10 @@
 
 namespace shadowcull {
 
+// A bake holds one Decision per (group, light) of the whole world (10 M in the benchmark's
+// world L): keep it small.
+static_assert(sizeof(Decision) <= 48, "Decision grew: every bit of a world pays for it");
+
 const char* verdictName(Verdict v) {
     switch (v) {
         case Verdict::Undecided: return "undecided";
@@ -20,13 +24,21 @@ uint32_t ChunkVerdicts::groupMask(size_t object, int group) const {
     return mask;
 }
 
-void decide(Decision& d, Verdict v, const char* stage, std::string reason, std::optional<Witness> witness) {
+void decideWith(Decision& d, Verdict v, const char* stage, const char* staticReason, std::shared_ptr<const Evidence> evidence) {
     assert(d.verdict == Verdict::Undecided && v != Verdict::Undecided);
     if (d.verdict != Verdict::Undecided) return;  // a decided bit stays as it is
     d.verdict = v;
     d.stage = stage;
-    d.reason = std::move(reason);
-    d.witness = std::move(witness);
+    d.staticReason_ = staticReason;
+    d.evidence_ = std::move(evidence);
+}
+
+void decide(Decision& d, Verdict v, const char* stage, std::string reason, std::optional<Witness> witness) {
+    decideWith(d, v, stage, nullptr, std::make_shared<const Evidence>(Evidence{std::move(reason), std::move(witness)}));
+}
+
+void decide(Decision& d, Verdict v, const char* stage, std::shared_ptr<const Evidence> shared) {
+    decideWith(d, v, stage, nullptr, std::move(shared));
 }
 
 }  // namespace shadowcull

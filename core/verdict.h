@@ -3,9 +3,12 @@
 // (undecided, written as 1). Each decision records the stage and its evidence.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -27,11 +30,32 @@ struct Witness {
     std::string receiver;  // label of the receiving object, with its group
 };
 
-struct Decision {
-    Verdict verdict = Verdict::Undecided;
-    std::string stage;   // "input", "reach", "raycast", ... (empty while undecided)
-    std::string reason;  // the proof for a 0, or a note for a 1
+// What a decision rests on beyond a fixed sentence: a reason with numbers in it, or a
+// witness ray. Kept on the heap, only for the decisions that have one.
+struct Evidence {
+    std::string reason;
     std::optional<Witness> witness;
+};
+
+// One bit's decision. Small (48 bytes), because a bake keeps one per (group, light) of the
+// whole world: the stage and most reasons are fixed sentences (static storage, not copied);
+// only computed reasons and witnesses take heap space.
+class Decision {
+public:
+    Verdict verdict = Verdict::Undecided;
+    std::string_view stage;  // "input", "reach", "raycast", ... (empty while undecided)
+
+    // The proof for a 0, or a note for a 1 (empty while undecided).
+    std::string_view reason() const {
+        return evidence_ ? std::string_view(evidence_->reason) : staticReason_ ? staticReason_ : std::string_view();
+    }
+    // The ray that proves a 1, when a stage found one.
+    const Witness* witness() const { return evidence_ && evidence_->witness ? &*evidence_->witness : nullptr; }
+
+private:
+    const char* staticReason_ = nullptr;
+    std::shared_ptr<const Evidence> evidence_;  // shared: copies of a verdict table share it
+    friend void decideWith(Decision&, Verdict, const char*, const char*, std::shared_ptr<const Evidence>);
 };
 
 // Verdicts of one centre-chunk object (model or terrain), one row per group.
@@ -61,8 +85,21 @@ struct ChunkVerdicts {
     uint32_t groupMask(size_t object, int group) const;
 };
 
-// Every stage turns undecided into kept or culled and never changes a decided bit; this is
-// the one place that writes a decision.
+// Every stage turns undecided into kept or culled and never changes a decided bit; these
+// are the only ways to write a decision. `stage` must be static text (Stage::name()).
+// A fixed sentence (a string literal) is stored as a pointer:
+template <size_t N>
+void decide(Decision& d, Verdict v, const char* stage, const char (&reason)[N]);
+// A computed reason, and a witness ray, go to the heap:
 void decide(Decision& d, Verdict v, const char* stage, std::string reason, std::optional<Witness> witness = std::nullopt);
+// Evidence that many bits share (made once, e.g. per light):
+void decide(Decision& d, Verdict v, const char* stage, std::shared_ptr<const Evidence> shared);
+
+void decideWith(Decision& d, Verdict v, const char* stage, const char* staticReason, std::shared_ptr<const Evidence> evidence);
+
+template <size_t N>
+void decide(Decision& d, Verdict v, const char* stage, const char (&reason)[N]) {
+    decideWith(d, v, stage, reason, nullptr);
+}
 
 }  // namespace shadowcull

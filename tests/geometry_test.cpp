@@ -333,8 +333,8 @@ TEST(GeometryStage, HardCasesHaveTheExpectedVerdictsEverywhere) {
             for (const auto& [uuid, v] : want) {
                 const Decision* d = findDecision(r, where.at(uuid), 0, 0);
                 ASSERT_NE(d, nullptr);
-                EXPECT_EQ(d->verdict, v) << "got " << verdictName(d->verdict) << " by " << d->stage << ": " << d->reason
-                                         << (d->witness ? " on " + d->witness->receiver : "");
+                EXPECT_EQ(d->verdict, v) << "got " << verdictName(d->verdict) << " by " << d->stage << ": " << d->reason()
+                                         << (d->witness() ? " on " + d->witness()->receiver : "");
             }
         }
     }

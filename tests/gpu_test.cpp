@@ -318,10 +318,10 @@ TEST(GpuBaseline, QuarterQuadPassesExactlyItsPixelCount) {
     const Decision& small = l->at(fixedUuid(2), 0, 0);
     EXPECT_EQ(small.verdict, Verdict::Kept);
     EXPECT_EQ(small.stage, "gpu-baseline");
-    EXPECT_EQ(small.reason, "1024 samples passed at 64 px");
+    EXPECT_EQ(small.reason(), "1024 samples passed at 64 px");
     const Decision& ground = l->at(fixedUuid(1), 0, 0);
     EXPECT_EQ(ground.verdict, Verdict::Culled);
-    EXPECT_EQ(ground.reason, "0 samples passed at 64 px");
+    EXPECT_EQ(ground.reason(), "0 samples passed at 64 px");
 }
 
 TEST(GpuConfirm, QuarterQuadKnownCoverage) {
@@ -363,7 +363,7 @@ TEST(GpuConfirm, QuarterQuadKnownCoverage) {
     const Decision& g = l->at(fixedUuid(1), 0, 0);
     EXPECT_EQ(g.verdict, Verdict::Culled);
     EXPECT_EQ(g.stage, "gpu");
-    EXPECT_EQ(g.reason.rfind("nothing behind", 0), 0u) << g.reason;
+    EXPECT_EQ(g.reason().rfind("nothing behind", 0), 0u) << g.reason();
 }
 
 // --- The baseline -----------------------------------------------------------------------
@@ -375,8 +375,8 @@ TEST(GpuBaseline, TerrainPassDiscardsReceiversUnderTheTerrain) {
     ASSERT_TRUE(deep);
     gpu::GpuBaselineMethod baseline({64});
     runStage(baseline, *deep);
-    EXPECT_EQ(deep->at("terrain", 0, 0).verdict, Verdict::Culled) << deep->at("terrain", 0, 0).reason;
-    EXPECT_EQ(deep->at("terrain", 0, 0).reason, "0 samples passed at 64 px");
+    EXPECT_EQ(deep->at("terrain", 0, 0).verdict, Verdict::Culled) << deep->at("terrain", 0, 0).reason();
+    EXPECT_EQ(deep->at("terrain", 0, 0).reason(), "0 samples passed at 64 px");
     EXPECT_EQ(deep->at(fixedUuid(1), 0, 0).verdict, Verdict::Culled) << "the sheet is never lit";
     // 5 mm under (within the tolerance): it counts, at the 32 x 32 pixels of its quarter.
     std::unique_ptr<Loaded> shallow = load(quadUnderTerrain(0.005), "shallow");
@@ -384,7 +384,7 @@ TEST(GpuBaseline, TerrainPassDiscardsReceiversUnderTheTerrain) {
     gpu::GpuBaselineMethod baseline2({64});
     runStage(baseline2, *shallow);
     EXPECT_EQ(shallow->at("terrain", 0, 0).verdict, Verdict::Kept);
-    EXPECT_EQ(shallow->at("terrain", 0, 0).reason, "1024 samples passed at 64 px");
+    EXPECT_EQ(shallow->at("terrain", 0, 0).reason(), "1024 samples passed at 64 px");
 }
 
 TEST(GpuBaseline, ReproducesTheKnownMasksOnCoarseScenes) {
@@ -413,7 +413,7 @@ TEST(GpuBaseline, ReproducesTheKnownMasksOnCoarseScenes) {
 void expectNeverLit(const Decision& d) {
     EXPECT_EQ(d.verdict, Verdict::Culled);
     EXPECT_EQ(d.stage, "gpu");
-    EXPECT_EQ(d.reason.rfind("never lit", 0), 0u) << d.reason;
+    EXPECT_EQ(d.reason().rfind("never lit", 0), 0u) << d.reason();
 }
 
 TEST(GpuConfirm, ProvesACubeUnderASlabIsNeverLit) {
@@ -472,8 +472,8 @@ TEST(GpuConfirm, TerrainRuleOnlyExcludesReceiversWhollyUnderTheTerrain) {
     withTerrain.includeTerrain = true;
     gpu::GpuConfirmStage stage(withTerrain);
     runStage(stage, *deep);
-    EXPECT_EQ(deep->at("terrain", 0, 0).verdict, Verdict::Culled) << deep->at("terrain", 0, 0).reason;
-    EXPECT_EQ(deep->at("terrain", 0, 0).reason.rfind("nothing behind", 0), 0u) << deep->at("terrain", 0, 0).reason;
+    EXPECT_EQ(deep->at("terrain", 0, 0).verdict, Verdict::Culled) << deep->at("terrain", 0, 0).reason();
+    EXPECT_EQ(deep->at("terrain", 0, 0).reason().rfind("nothing behind", 0), 0u) << deep->at("terrain", 0, 0).reason();
     EXPECT_EQ(deep->at(fixedUuid(1), 0, 0).verdict, Verdict::Culled);
     EXPECT_EQ(deep->at(fixedUuid(1), 0, 0).stage, "gpu");
     // 5 mm under (within the tolerance, deeper than the 1 mm bias): the terrain's shadow
@@ -517,7 +517,7 @@ TEST(GpuConfirm, FilterRadiusWidensTheReceivers) {
         gpu::GpuConfirmStage stage({128});
         runStage(stage, *sharp);
         EXPECT_EQ(sharp->at(fixedUuid(1), 0, 0).verdict, Verdict::Culled);
-        EXPECT_EQ(sharp->at(fixedUuid(1), 0, 0).reason.rfind("nothing behind", 0), 0u);
+        EXPECT_EQ(sharp->at(fixedUuid(1), 0, 0).reason().rfind("nothing behind", 0), 0u);
         // A 0.5 m filter reaches it (semantics.md, condition 4): never culled.
         std::unique_ptr<Loaded> soft = load(receiverBesideShadow(lamp, 0.5), lamp ? "lamp5" : "sun5");
         ASSERT_TRUE(soft);
@@ -584,8 +584,8 @@ TEST(GpuThinFeatures, BaselineAt1024MissesASlitAndARodThatConfirmationKeeps) {
         gpu::GpuBaselineMethod baseline({1024});
         runStage(baseline, *base);
         const Decision& missed = base->at(fixedUuid(1), 0, 0);
-        EXPECT_EQ(missed.verdict, Verdict::Culled) << "the baseline was expected to miss it: " << missed.reason;
-        EXPECT_EQ(missed.reason, "0 samples passed at 1024 px");
+        EXPECT_EQ(missed.verdict, Verdict::Culled) << "the baseline was expected to miss it: " << missed.reason();
+        EXPECT_EQ(missed.reason(), "0 samples passed at 1024 px");
         // The conservative pass at the same resolution never proves it 0, and says where
         // to look: the pixels that passed cover the lit strip.
         std::unique_ptr<Loaded> conf = load(b, std::string(name) + "-confirm");
@@ -640,7 +640,7 @@ TEST(GpuConfirm, NeverCullsAKnownOne) {
                 const Decision& d = l->verdicts.at(oi, a.group, light);
                 if (a.mask >> light & 1u) {
                     EXPECT_NE(d.verdict, Verdict::Culled)
-                        << "false cull: " << a.key << " group " << a.group << " light " << light + 1 << ": " << d.reason;
+                        << "false cull: " << a.key << " group " << a.group << " light " << light + 1 << ": " << d.reason();
                 }
                 culled += d.verdict == Verdict::Culled;
             }
@@ -785,8 +785,8 @@ TEST(GpuConfirm, NeverCullsABitWithAWitnessOnRandomWorlds) {
                     ++witnesses;
                     EXPECT_NE(gpuBit.verdict, Verdict::Culled)
                         << "false cull of element " << ov.elementIndex << " group " << g << " light " << l + 1
-                        << ": " << gpuBit.reason << " (witness p at " << witness.witness->wsP.x << ","
-                        << witness.witness->wsP.y << "," << witness.witness->wsP.z << ")";
+                        << ": " << gpuBit.reason() << " (witness p at " << witness.witness()->wsP.x << ","
+                        << witness.witness()->wsP.y << "," << witness.witness()->wsP.z << ")";
                 }
         }
     }
