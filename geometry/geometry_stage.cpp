@@ -14,6 +14,7 @@
 
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "core/format.h"
@@ -210,10 +211,44 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
     if (tasks.empty()) return Status::ok();
 
     try {
-        // Receivers: every triangle with three distinct vertices of everything loaded.
+        const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
+        const double margin = 1e-9 * (std::max({ext.x, ext.y, ext.z}) + 1.0) + 1e-9;
+        const Aabb limits = grown(window.lsBounds, 1.0);
+
+        // Casters per task, and a box around every frustum any task will query: receivers
+        // outside it can never be returned by a query, so they are left out of the grid
+        // (for local lights most of the window).
+        std::vector<std::vector<Triangle>> tasksCasters(tasks.size());
+        Aabb queried;
+        for (size_t ti = 0; ti < tasks.size(); ++ti) {
+            const ObjectVerdicts& ov = cv.objects[tasks[ti].object];
+            const WindowObject& wo = window.objects[size_t(ov.windowObject)];
+            for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
+                if (wo.mesh->triangleGroup[t] != uint32_t(tasks[ti].group)) continue;
+                const auto& i = wo.mesh->triangles[t];
+                const glm::dvec3 &a = wo.mesh->positions[i[0]], &b = wo.mesh->positions[i[1]], &c = wo.mesh->positions[i[2]];
+                if (!hasRepeatedVertex(a, b, c))
+                    tasksCasters[ti].push_back({wo.lsTransform.apply(a), wo.lsTransform.apply(b), wo.lsTransform.apply(c)});
+            }
+            for (int l = 0; l < cv.lightCount; ++l)
+                if (wanted(cv.at(tasks[ti].object, tasks[ti].group, l)))
+                    for (const Triangle& t : tasksCasters[ti]) queried.extend(frustumBox(t, window.lsLights[size_t(l)], limits, margin));
+        }
+        auto overlaps = [](const Aabb& a, const Aabb& b) {
+            return !(a.max.x < b.min.x || a.min.x > b.max.x || a.max.y < b.min.y || a.min.y > b.max.y ||
+                     a.max.z < b.min.z || a.min.z > b.max.z);
+        };
+
+        // Receivers: every triangle with three distinct vertices of everything loaded that
+        // lies in the queried box.
         std::vector<Receiver> receivers;
+        size_t most = 0;
+        for (const WindowObject& o : window.objects)
+            if (overlaps(o.lsBounds, queried)) most += o.mesh->triangles.size();
+        receivers.reserve(most);
         for (uint32_t k = 0; k < window.objects.size(); ++k) {
             const WindowObject& o = window.objects[k];
+            if (!overlaps(o.lsBounds, queried)) continue;
             for (size_t t = 0; t < o.mesh->triangles.size(); ++t) {
                 const auto& i = o.mesh->triangles[t];
                 const glm::dvec3 &a = o.mesh->positions[i[0]], &b = o.mesh->positions[i[1]], &c = o.mesh->positions[i[2]];
@@ -221,6 +256,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 Receiver r;
                 r.tri = {o.lsTransform.apply(a), o.lsTransform.apply(b), o.lsTransform.apply(c)};
                 r.box = triangleBox(r.tri);
+                if (!overlaps(r.box, queried)) continue;
                 r.object = k;
                 r.group = o.mesh->triangleGroup[t];
                 r.twoSided = o.mesh->groups[r.group].twoSided();
@@ -229,10 +265,13 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 receivers.push_back(r);
             }
         }
-        const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
-        const double margin = 1e-9 * (std::max({ext.x, ext.y, ext.z}) + 1.0) + 1e-9;
-        const Aabb limits = grown(window.lsBounds, 1.0);
         ReceiverGrid grid(limits, std::max(window.chunkSize / 16.0, 1.0), receivers);
+        // Per thread: which receivers a query has already returned (reused across tasks).
+        struct Stamps {
+            std::vector<uint32_t> stamp;
+            uint32_t mark = 0;
+        };
+        tbb::enumerable_thread_specific<Stamps> stamps;
 
         std::vector<LightGeometry> lightGeom(size_t(cv.lightCount));
         std::vector<std::unique_ptr<ReceiverRules>> rules(size_t(cv.lightCount));
@@ -250,15 +289,12 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
             const Task& task = tasks[ti];
             const ObjectVerdicts& ov = cv.objects[task.object];
             const WindowObject& wo = window.objects[size_t(ov.windowObject)];
-            std::vector<Triangle> casters;
-            for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
-                if (wo.mesh->triangleGroup[t] != uint32_t(task.group)) continue;
-                const auto& i = wo.mesh->triangles[t];
-                const glm::dvec3 &a = wo.mesh->positions[i[0]], &b = wo.mesh->positions[i[1]], &c = wo.mesh->positions[i[2]];
-                if (!hasRepeatedVertex(a, b, c)) casters.push_back({wo.lsTransform.apply(a), wo.lsTransform.apply(b), wo.lsTransform.apply(c)});
+            const std::vector<Triangle>& casters = tasksCasters[ti];
+            Stamps& st = stamps.local();
+            if (st.stamp.size() != receivers.size() || st.mark > 0xfffff000u) {
+                st.stamp.assign(receivers.size(), 0);
+                st.mark = 0;
             }
-            std::vector<uint32_t> stamp(receivers.size(), 0);
-            uint32_t mark = 0;
             uint64_t localTests = 0;
             for (int l = 0; l < cv.lightCount; ++l) {
                 Decision& d = cv.at(task.object, task.group, l);
@@ -272,7 +308,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     const ExactFrustum frustum(t, lightGeom[size_t(l)], L.filterRadius);
                     const Aabb fb = frustumBox(t, L, limits, margin);
                     volume.extend(fb);
-                    grid.forEachOverlapping(fb, stamp, ++mark, [&](uint32_t k) {
+                    grid.forEachOverlapping(fb, st.stamp, ++st.mark, [&](uint32_t k) {
                         const double beta = lb.beta(k);
                         if (beta < 0) return false;
                         ++localTests;
