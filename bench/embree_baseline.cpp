@@ -126,7 +126,7 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
         out["error"] = loaded.error().what();
         return out;
     }
-    std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>> terrainMeshes;
+    TerrainMeshes terrainMeshes;
     const BakeWindow w = buildWindow(*loaded, only[0], terrainMeshes);
 
     const std::string config = threads > 0 ? "threads=" + std::to_string(threads) : "";

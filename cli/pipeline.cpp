@@ -238,7 +238,7 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
     result.notes = runner.notes();
     if (!runner.status()) return runner.status().error();
     result.stages = runner.timings();
-    std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>> terrainMeshes;
+    TerrainMeshes terrainMeshes;
     struct Staged {
         std::string temp, target;
     };

@@ -97,7 +97,7 @@ private:
 // it again (render, check). The window points into `space`.
 struct ChunkBake {
     std::unique_ptr<Space> space;
-    std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>> terrainMeshes;
+    TerrainMeshes terrainMeshes;
     BakeWindow window;
     ChunkVerdicts verdicts;
     std::vector<StageTiming> stages;

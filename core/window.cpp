@@ -65,7 +65,7 @@ std::string objectLabel(const ChunkFile& cf, const ChunkObject& o) {
 }  // namespace
 
 BakeWindow buildWindow(const Space& space, ChunkCoord centre,
-                       std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>>& terrainMeshes) {
+                       TerrainMeshes& terrainMeshes) {
     const SpaceSettings& S = space.settings;
     BakeWindow w;
     w.centre = centre;
@@ -116,13 +116,9 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
                 wo.centre = dx == 0 && dz == 0;
                 wo.label = objectLabel(cf, o);
                 if (o.kind == ChunkObject::Kind::Terrain) {
-                    auto tm = std::find_if(terrainMeshes.begin(), terrainMeshes.end(),
-                                           [&](const auto& e) { return e.first == o.heightfield.get(); });
-                    if (tm == terrainMeshes.end()) {
-                        terrainMeshes.emplace_back(o.heightfield.get(), std::make_shared<const Mesh>(o.heightfield->toMesh()));
-                        tm = terrainMeshes.end() - 1;
-                    }
-                    wo.mesh = tm->second.get();
+                    std::shared_ptr<const Mesh>& tm = terrainMeshes[o.heightfield.get()];
+                    if (!tm) tm = std::make_shared<const Mesh>(o.heightfield->toMesh());
+                    wo.mesh = tm.get();
                     wo.heightfield = o.heightfield.get();
                     wo.lsTerrainOrigin = lsChunk;
                     wo.lsTransform.rows[3] = lsChunk;

@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <glm/common.hpp>
@@ -63,10 +64,13 @@ struct BakeWindow {
     std::optional<double> lsTerrainMinOver(double x0, double z0, double x1, double z1) const;
 };
 
+// Terrain meshes made from heightfields, kept across windows (a bake makes each once).
+using TerrainMeshes = std::unordered_map<const Heightfield*, std::shared_ptr<const Mesh>>;
+
 // Builds the window around `centre`. Terrain meshes are made once per heightfield and kept
 // in `terrainMeshes` (owned by the caller, reused across windows).
 BakeWindow buildWindow(const Space& space, ChunkCoord centre,
-                       std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>>& terrainMeshes);
+                       TerrainMeshes& terrainMeshes);
 
 // Exact test for a triangle with no area in the sense used everywhere in the project:
 // two of its vertices are the same point. (Collinear but distinct vertices are kept: a

@@ -66,7 +66,7 @@ const std::string& glUnavailableReason() {
 
 struct Loaded {
     Space space;
-    std::vector<std::pair<const Heightfield*, std::shared_ptr<const Mesh>>> terrainMeshes;
+    TerrainMeshes terrainMeshes;
     BakeWindow window;
     ChunkVerdicts verdicts;
 
