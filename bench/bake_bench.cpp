@@ -774,7 +774,7 @@ int main(int argc, char** argv) {
                 "bits the stage examined for it; the occlusion loops trace the segment light -> sample point (the shadow "
                 "ray of \"is p lit\"), the closest-hit and all-hit loops the stage's whole ray. Each loop traces as many "
                 "rays as the stage made Embree calls (capped), median of 3. The stage's rays/s is its Embree calls "
-                "(p ray + q steps) over its whole time, scene builds and sampling included.\n\n");
+                "(occlusion-packet rays, p rays, q steps) over its whole time, scene builds and sampling included.\n\n");
     std::printf("| world | window objects / triangles | rays per loop | bare rtcOccluded1 rays/s (occluded) | "
                 "bare rtcOccluded16 rays/s | bare closest-hit rtcIntersect1 + alpha filter rays/s | "
                 "bare all-hit rtcIntersect1 rays/s (hits per ray) | pipeline raycast stage rays/s | pipeline / occluded1 | "
