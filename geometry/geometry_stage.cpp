@@ -32,6 +32,12 @@ struct Receiver {
     bool twoSided = false, mirrored = false, terrain = false;
 };
 
+// Closed boxes that share a point.
+bool overlaps(const Aabb& a, const Aabb& b) {
+    return !(a.max.x < b.min.x || a.min.x > b.max.x || a.max.y < b.min.y || a.min.y > b.max.y || a.max.z < b.min.z ||
+             a.min.z > b.max.z);
+}
+
 // Receivers bucketed by the x/z cells their boxes touch.
 class ReceiverGrid {
 public:
@@ -58,9 +64,7 @@ public:
                     if (stamp[k] == mark) continue;
                     stamp[k] = mark;
                     const Aabb& b = receivers_[k].box;
-                    if (b.max.x < box.min.x || b.min.x > box.max.x || b.max.y < box.min.y || b.min.y > box.max.y ||
-                        b.max.z < box.min.z || b.min.z > box.max.z)
-                        continue;
+                    if (!overlaps(b, box)) continue;
                     if (f(k)) return;
                 }
     }
@@ -234,10 +238,6 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 if (wanted(cv.at(tasks[ti].object, tasks[ti].group, l)))
                     for (const Triangle& t : tasksCasters[ti]) queried.extend(frustumBox(t, window.lsLights[size_t(l)], limits, margin));
         }
-        auto overlaps = [](const Aabb& a, const Aabb& b) {
-            return !(a.max.x < b.min.x || a.min.x > b.max.x || a.max.y < b.min.y || a.min.y > b.max.y ||
-                     a.max.z < b.min.z || a.min.z > b.max.z);
-        };
 
         // Receivers: every triangle with three distinct vertices of everything loaded that
         // lies in the queried box.
