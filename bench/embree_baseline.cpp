@@ -42,6 +42,7 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
+#include "core/float_mode.h"
 #include "core/scene.h"
 #include "core/window.h"
 #include "raycast/embree_scene.h"
@@ -240,7 +241,7 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
             const uint64_t count = rep < 0 ? std::min<uint64_t>(n, 100000) : n;
             const auto t = std::chrono::steady_clock::now();
             tbb::parallel_for(tbb::blocked_range<uint64_t>(0, count, grain), [&](const tbb::blocked_range<uint64_t>& r) {
-                raycast::enableFlushToZero();
+                const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);  // as the stage
                 total += body(r.begin(), r.end());
             });
             if (rep >= 0) times.push_back(secondsSince(t));

@@ -17,6 +17,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include "core/float_mode.h"
 #include "core/format.h"
 #include "core/light_reach.h"
 #include "geometry/exact_frustum.h"
@@ -196,6 +197,7 @@ std::string worldBox(const Aabb& b, const glm::dvec3& origin) {
 Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();
     if (window.skippedObjects > 0) return Status::ok();  // an unloaded object might receive
+    const FloatModeScope ieee(FloatModeScope::Underflow::Gradual);  // see the tasks below
 
     struct Task {
         size_t object;
@@ -286,6 +288,9 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
         std::atomic<bool> contradiction{false};
         std::string contradictionAt;
         tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
+            // Exact predicates: CGAL's interval filters need gradual underflow, whatever
+            // mode an earlier stage's tasks left TBB in (core/float_mode.h).
+            const FloatModeScope ieee(FloatModeScope::Underflow::Gradual);
             const Task& task = tasks[ti];
             const ObjectVerdicts& ov = cv.objects[task.object];
             const WindowObject& wo = window.objects[size_t(ov.windowObject)];

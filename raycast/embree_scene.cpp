@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include <pmmintrin.h>
-#include <xmmintrin.h>
 
 namespace shadowcull::raycast {
 
@@ -120,11 +118,6 @@ void skipAlphaTested(const RTCFilterFunctionNArguments* args) {
         const uint32_t group = o.mesh->triangleGroup[RTCHitN_primID(args->hit, args->N, i)];
         if (o.mesh->groups[group].alphaTested && !(object == a->object && group == a->group)) args->valid[i] = 0;
     }
-}
-
-void enableFlushToZero() {
-    _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
-    _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
 }
 
 }  // namespace shadowcull::raycast

@@ -90,8 +90,4 @@ struct AlphaSkip {
 };
 void skipAlphaTested(const RTCFilterFunctionNArguments* args);
 
-// Denormals in ray traversal cost ~100x per operation; the geometry never needs them. Call
-// in every thread (task) that traces rays.
-void enableFlushToZero();
-
 }  // namespace shadowcull::raycast

@@ -15,10 +15,12 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <tbb/parallel_for.h>
 #include <tinyxml2.h>
 
 #include "cli/pipeline.h"
 #include "cli/report.h"
+#include "core/float_mode.h"
 #include "tests/support/bake_lookup.h"
 #include "tests/support/sample_space.h"
 #include "tests/support/space_builder.h"
@@ -531,4 +533,45 @@ TEST(Resume, AKilledBakeCompletesOnRerun) {
     cli::BakeResult rerun = bakeResume(dir / "work");
     EXPECT_EQ(rerun.chunksWritten + rerun.chunksResumed, 100);
     EXPECT_EQ(chunkTexts(dir / "work"), complete);
+}
+
+// The raycast stage traces with flush-to-zero and restores the mode of the thread that
+// called it. TBB tasks may still run with it afterwards (Embree's BVH builds leave it
+// there): a task that needs gradual underflow (the geometry stage's CGAL filters) sets it
+// with a FloatModeScope, which also restores what it found.
+TEST(FloatMode, RaycastRestoresTheCallerAndScopesSetTheirMode) {
+    constexpr unsigned kFtzDaz = FloatModeScope::kFtzDaz;
+    ASSERT_EQ(_mm_getcsr() & kFtzDaz, 0u);
+    fs::path dir = freshTestDir("-ftz");
+    sampleSpace().write((dir / "space").string());
+    cli::BakeOptions opt;
+    opt.spaceDir = (dir / "space").string();
+    opt.write = false;
+    opt.useGeometry = false;
+    opt.useGpu = false;
+    Expected<cli::BakeResult> r = cli::runBake(opt);
+    ASSERT_TRUE(r) << r.error().what();
+    ASSERT_GT(r->stages.at(1).stats.raysCast, 0u);  // the rays were traced
+    EXPECT_EQ(_mm_getcsr() & kFtzDaz, 0u) << "the calling thread was left in flush-to-zero mode";
+
+    std::atomic<int> flushing{0}, restored{0};
+    tbb::parallel_for(0, 64, [&](int) {
+        const unsigned before = _mm_getcsr();
+        {
+            const FloatModeScope ieee(FloatModeScope::Underflow::Gradual);
+            if (_mm_getcsr() & kFtzDaz) ++flushing;
+            volatile double tiny = 1e-308;
+            if (!(tiny / 1e10 > 0.0)) ++flushing;  // a denormal result survives
+        }
+        restored += _mm_getcsr() == before;
+        std::this_thread::sleep_for(std::chrono::microseconds(100));
+    });
+    EXPECT_EQ(flushing.load(), 0);
+    EXPECT_EQ(restored.load(), 64);
+    {
+        const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);
+        volatile double tiny = 1e-308;
+        EXPECT_EQ(tiny / 1e10, 0.0);
+    }
+    EXPECT_EQ(_mm_getcsr() & kFtzDaz, 0u);
 }
