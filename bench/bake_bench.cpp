@@ -410,6 +410,7 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
                           {"bitsExamined", s.bitsExamined},
                           {"raysCast", s.raysCast},
                           {"exactTests", s.exactTests},
+                          {"gpuPasses", s.gpuPasses},
                           {"provedKept", s.provedKept},
                           {"provedCulled", s.provedCulled}});
     }
@@ -584,15 +585,13 @@ void printBake(const WorldRun& w) {
         const double sec = s["seconds"].get<double>();
         staged += sec;
         const uint64_t rays = s["raysCast"].get<uint64_t>();
-        const bool gpuStage = s["name"].get<std::string>().rfind("gpu", 0) == 0;
         std::printf("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", s["name"].get<std::string>().c_str(),
                     seconds(sec).c_str(), seconds(sec / chunks).c_str(), rays ? count(rays).c_str() : "0",
                     rays && sec > 0 ? rate(double(rays) / sec).c_str() : "", count(s["exactTests"].get<uint64_t>()).c_str(),
-                    gpuStage ? "n/a" : "0", count(s["bitsExamined"].get<uint64_t>()).c_str(), count(s["provedCulled"].get<uint64_t>()).c_str(),
+                    count(s.value("gpuPasses", uint64_t(0))).c_str(), count(s["bitsExamined"].get<uint64_t>()).c_str(), count(s["provedCulled"].get<uint64_t>()).c_str(),
                     count(s["provedKept"].get<uint64_t>()).c_str());
     }
-    // GPU passes: StageStats has no pass count, so the GPU stages read "n/a" (the CPU
-    // stages make none). The original GPU method runs as its own bake (printGpuBaseline).
+    // The original GPU method runs as its own bake (printGpuBaseline).
     const double total = b["totalSeconds"].get<double>();
     const double other = std::max(0.0, total - load - staged);
     std::printf("| other (windows, verdict tables) | %s | %s | | | | | | | |\n", seconds(other).c_str(),
@@ -659,21 +658,23 @@ void printGpuBaseline(const std::vector<WorldRun>& runs) {
     std::printf("Same chunks, one child process each. False culls of the GPU method: bits it culls for which the "
                 "analytic bake has a witness ray (the shadow provably matters).\n\n");
     std::printf("| world | resolution | gpu baseline s | s per chunk | analytic bake s | GPU / analytic | GPU culls | GPU false "
-                "culls | analytic culls the GPU keeps | peak RSS |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+                "culls | analytic culls the GPU keeps | GPU passes | peak RSS |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (const WorldRun& w : runs) {
         if (!w.gpuRun) continue;
         const double analytic = w.bake["totalSeconds"].get<double>();
         if (!w.gpuBaked) {
-            std::printf("| %s | %d | n/a (failed: %s) | | %s | | | | | |\n", w.spec.name.c_str(),
+            std::printf("| %s | %d | n/a (failed: %s) | | %s | | | | | | |\n", w.spec.name.c_str(),
                         w.gpuBake.value("gpuResolution", 0), w.gpuFailure.c_str(), seconds(analytic).c_str());
             continue;
         }
         const double gpu = w.gpuBake["totalSeconds"].get<double>();
-        std::printf("| %s | %d | %s | %s | %s | %.2fx | %s | %s | %s | %s |\n", w.spec.name.c_str(),
+        uint64_t passes = 0;
+        for (const json& st : w.gpuBake["stages"]) passes += st.value("gpuPasses", uint64_t(0));
+        std::printf("| %s | %d | %s | %s | %s | %.2fx | %s | %s | %s | %s | %s |\n", w.spec.name.c_str(),
                     w.gpuBake["gpuResolution"].get<int>(), seconds(gpu).c_str(),
                     seconds(gpu / w.gpuBake["chunksBaked"].get<double>()).c_str(), seconds(analytic).c_str(), gpu / analytic,
                     count(w.gpuCulls).c_str(), count(w.gpuFalseCulls).c_str(), count(w.analyticCullsGpuKeeps).c_str(),
-                    mib(double(w.gpuPeakKiB)).c_str());
+                    count(passes).c_str(), mib(double(w.gpuPeakKiB)).c_str());
     }
 }
 

@@ -58,6 +58,7 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
         s += ", " + st.name + " " + fmt("%.2f s", st.stats.seconds);
         if (st.stats.raysCast) s += " (" + std::to_string(st.stats.raysCast) + " rays)";
         if (st.stats.exactTests) s += " (" + std::to_string(st.stats.exactTests) + " exact tests)";
+        if (st.stats.gpuPasses) s += " (" + std::to_string(st.stats.gpuPasses) + " passes)";
     }
     s += ", write " + fmt("%.2f s", r.writeSeconds) + ", total " + fmt("%.2f s", r.totalSeconds) + "\n";
     return s;

@@ -18,6 +18,7 @@ struct StageStats {
     uint64_t bitsExamined = 0;  // undecided (group, light) bits the stage looked at
     uint64_t raysCast = 0;
     uint64_t exactTests = 0;  // exact (CGAL) receiver tests
+    uint64_t gpuPasses = 0;   // render passes over a light view's targets (GPU stages)
     uint64_t provedKept = 0;
     uint64_t provedCulled = 0;
     void add(const StageStats& o) {
@@ -25,6 +26,7 @@ struct StageStats {
         bitsExamined += o.bitsExamined;
         raysCast += o.raysCast;
         exactTests += o.exactTests;
+        gpuPasses += o.gpuPasses;
         provedKept += o.provedKept;
         provedCulled += o.provedCulled;
     }

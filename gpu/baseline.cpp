@@ -223,6 +223,7 @@ Status GpuBaselineMethod::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats
                 // pass: llvmpipe corrupted its heap with thousands of queries outstanding
                 // across passes (free(): corrupted unsorted chunks in DeleteQueries).
                 readPending();
+                stats.gpuPasses += 2;
             }
         }
     }

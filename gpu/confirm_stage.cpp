@@ -42,6 +42,7 @@
 #include "gpu/confirm_stage.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <climits>
 #include <cmath>
@@ -50,7 +51,10 @@
 #include <cstring>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <unordered_map>
+
+#include <tbb/parallel_for.h>
 
 #include <glm/geometric.hpp>
 
@@ -373,6 +377,59 @@ void keepTouching(std::vector<RasterPiece>& pieces, size_t from, const CellMask&
                  pieces.end());
 }
 
+// The corners of a box.
+std::array<glm::dvec3, 8> boxCorners(const Aabb& b) {
+    std::array<glm::dvec3, 8> c;
+    for (int k = 0; k < 8; ++k) c[size_t(k)] = {k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z};
+    return c;
+}
+
+// A pixel rectangle holding reachOf() of every piece the builder makes from a triangle or
+// segment within the convex hull of `pts`, with a dilation up to `dilatePx`; nothing when
+// the hull cannot be bounded so. reachOf widens a piece's box by 1.51 px + dilation +
+// margin (below 1e-3 + 1e-6 (|coordinates| + size)); one pixel more covers the float
+// rounding of the box and of clipped vertices.
+std::optional<PixelRect> hullReach(const glm::dvec3* pts, size_t n, const PieceBuilder& pb, float dilatePx) {
+    const int width = pb.view().width, height = pb.view().height;
+    double b[4];
+    if (!pb.hullBounds(pts, n, b)) return std::nullopt;
+    const double maxAbs = std::max({std::abs(b[0]), std::abs(b[1]), std::abs(b[2]), std::abs(b[3])});
+    const double h = 2.52 + double(dilatePx) + 1e-3 + 2e-6 * (maxAbs + std::max(width, height));
+    auto clampTo = [](double v, int hi) { return int(std::clamp(v, 0.0, double(hi))); };
+    return PixelRect{clampTo(std::floor(b[0] - h), width), clampTo(std::floor(b[1] - h), height),
+                     clampTo(std::ceil(b[2] + h), width), clampTo(std::ceil(b[3] + h), height)};
+}
+
+// One light view's set-up: the casters' pieces and the cells they reach.
+struct ViewPrep {
+    PieceBuilder pb;
+    CellMask mask;
+    std::vector<RasterPiece> casterPieces;
+    PixelRect roi = PixelRect::empty();
+    double depthEps = 0;  // metres, the shader's absolute depth margin
+    float dilatePx = 0;   // receivers' dilation (directional light with a filter radius)
+    bool skip = false;    // no caster in this view
+    ViewPrep(const LightView& view, double nearZ, bool all) : pb(view, nearZ), mask(view.width, view.height, all) {}
+};
+
+// One object's part for one light: its occluder sheets and receiver triangles.
+struct ObjectSurfaces {
+    std::vector<Sheet> sheets;
+    std::vector<TriRef> receivers;
+};
+
+// An occluder sheet's pieces in one view, with the pixel rectangle its fragments can reach.
+struct SheetPieces {
+    std::vector<RasterPiece> pieces;
+    PixelRect rect;
+};
+
+// One object's pieces in one view.
+struct ObjectPieces {
+    std::vector<SheetPieces> sheets;
+    std::vector<RasterPiece> receivers;
+};
+
 }  // namespace
 
 struct GpuConfirmStage::Gl {
@@ -479,7 +536,7 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     for (int l = 0; l < cv.lightCount; ++l) {
         if (!lights[size_t(l)]) continue;
         const size_t first = groups_.size();
-        if (Status s = runLight(w, cv, l, work); !s) return s;
+        if (Status s = runLight(w, cv, l, work, stats); !s) return s;
         for (size_t k = first; k < groups_.size(); ++k) {
             ++stats.bitsExamined;
             if (cv.at(groups_[k].object, groups_[k].group, l).stage == name()) ++stats.provedCulled;
@@ -489,7 +546,7 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     return Status::ok();
 }
 
-Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, LightWork& work) {
+Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, LightWork& work, StageStats& stats) {
     const Light& L = w.lsLights[size_t(l)];
     const bool persp = L.type != LightType::Directional;
     const int res = options_.resolution;
@@ -544,14 +601,80 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     const double t = views[0].t;
     const double biasEff = persp ? L.bias / std::sqrt(1 + 2 * t * t) : L.bias;
 
-    // Classify every triangle for this light: occluder sheets, receivers, casters.
-    std::vector<Sheet> sheets;
-    std::vector<TriRef> receivers;
+    auto position = [&](uint32_t object, uint32_t vertex) -> const glm::dvec3& {
+        return tris.objects[object].positions[vertex];
+    };
+
+    // Casters: every triangle of a group examined here, per view with the pixels (8 x 8
+    // cells) they reach. The query reads the other passes only at those pixels, so
+    // everything is drawn within their bounding rectangle (scissor), and pieces that cannot
+    // touch a cell the casters reach are dropped. Other pixels are never read.
     std::vector<Caster> casters;
     for (size_t k = 0; k < w.objects.size(); ++k) {
+        if (queryOf[k].empty()) continue;
+        const Mesh& mesh = *w.objects[k].mesh;
+        for (uint32_t tr : tris.objects[k].triangles) {
+            const int id = queryOf[k][mesh.triangleGroup[tr]];
+            if (id >= 0) casters.push_back({uint32_t(k), tr, uint32_t(id)});
+        }
+    }
+    std::vector<ViewPrep> preps;
+    preps.reserve(views.size());
+    for (const LightView& view : views) {
+        ViewPrep& vp = preps.emplace_back(view, nearZ, options_.collectViewStats);
+        // Absolute depth margin (metres): far above float rounding of the view's depths.
+        const double depthScale = persp ? L.range + glm::length(w.lsBounds.max - w.lsBounds.min) +
+                                              glm::length(L.position - 0.5 * (w.lsBounds.min + w.lsBounds.max))
+                                        : (view.w1 - view.w0);
+        vp.depthEps = 1e-6 * depthScale + 1e-6;
+        if (!persp && L.filterRadius > 0)
+            vp.dilatePx = float(L.filterRadius *
+                                std::max(view.width / (view.u1 - view.u0), view.height / (view.v1 - view.v0)));
+        for (const Caster& c : casters) {
+            const auto& tri = w.objects[c.object].mesh->triangles[c.triangle];
+            vp.pb.triangle(position(c.object, tri[0]), position(c.object, tri[1]), position(c.object, tri[2]), 0.0f,
+                           c.id, vp.casterPieces);
+        }
+        vp.roi = PixelRect{0, 0, view.width, view.height};
+        if (!options_.collectViewStats) {
+            vp.skip = vp.casterPieces.empty();  // the bits' groups are not in this view
+            vp.roi = PixelRect::empty();
+            for (const RasterPiece& r : vp.casterPieces) {
+                vp.roi.add(reachOf(r, view));
+                vp.mask.mark(reachOf(r, view), double(r.plane2[1]), double(r.plane2[2]));
+            }
+        }
+        vp.mask.finish();
+    }
+
+    // The objects that can reach a caster cell in some view. An object whose bounds reach
+    // none gives no piece that keepTouching would keep, so it is left out before any
+    // per-triangle work: the pieces drawn are the same.
+    std::vector<uint32_t> near;
+    for (size_t k = 0; k < w.objects.size(); ++k) {
+        const WindowTriangles::Object& to = tris.objects[k];
+        if (to.triangles.empty()) continue;
+        const std::array<glm::dvec3, 8> corners = boxCorners(to.lsBounds);
+        for (const ViewPrep& vp : preps) {
+            if (vp.skip) continue;
+            const std::optional<PixelRect> r = hullReach(corners.data(), corners.size(), vp.pb, vp.dilatePx);
+            if (!r || vp.mask.touches(*r)) {
+                near.push_back(uint32_t(k));
+                work.edgesOf(w.objects[k].mesh, to.triangles);  // built here: read in parallel below
+                break;
+            }
+        }
+    }
+
+    // Classify the triangles of those objects for this light: occluder sheets and receivers
+    // (in parallel over objects; the order of sheets and receivers is the objects' order).
+    std::vector<ObjectSurfaces> surfaces(near.size());
+    tbb::parallel_for(size_t(0), near.size(), [&](size_t i) {
+        const uint32_t k = near[i];
         const WindowObject& o = w.objects[k];
         const Mesh& mesh = *o.mesh;
         const auto& to = tris.objects[k];
+        ObjectSurfaces& out = surfaces[i];
         const bool terrainRule = w.hasTerrain && o.kind != ChunkObject::Kind::Terrain;
         std::vector<int8_t> cls(mesh.triangles.size(), 0);  // +1 CCW on screen, -1 CW, 0 not an occluder
         for (uint32_t tr : to.triangles) {
@@ -573,22 +696,18 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
                 if (pg.twoSided() || front <= tol) {  // not certainly facing away
                     Aabb tb;
                     tb.extend(a), tb.extend(b), tb.extend(c);
-                    bool out = persp && distanceToBox(L.position, tb) > L.range * (1 + 1e-6) + 1e-6;
-                    if (!out && terrainRule) {
+                    bool out_ = persp && distanceToBox(L.position, tb) > L.range * (1 + 1e-6) + 1e-6;
+                    if (!out_ && terrainRule) {
                         const std::optional<double> h = w.lsTerrainMinOver(tb.min.x, tb.min.z, tb.max.x, tb.max.z);
-                        out = h && tb.max.y < *h - w.terrainTolerance - 1e-6 * (std::abs(*h) + 1.0);
+                        out_ = h && tb.max.y < *h - w.terrainTolerance - 1e-6 * (std::abs(*h) + 1.0);
                     }
-                    if (!out) receivers.push_back({uint32_t(k), tr});
+                    if (!out_) out.receivers.push_back({k, tr});
                 }
-            }
-            if (!queryOf[k].empty()) {
-                const int id = queryOf[k][mesh.triangleGroup[tr]];
-                if (id >= 0) casters.push_back({uint32_t(k), tr, uint32_t(id)});
             }
         }
         // Sheets: join triangles of one class across edges shared by exactly two of them
         // running the edge in opposite directions (they lie on both sides of it).
-        const MeshEdges& edges = work.edgesOf(o.mesh, to.triangles);
+        const MeshEdges& edges = *work.edges.at(o.mesh);
         UnionFind uf(mesh.triangles.size());
         std::vector<uint8_t> good(edges.count(), 0);  // bit 0: class +1, bit 1: class -1
         for (size_t e = 0; e < edges.count(); ++e) {
@@ -615,9 +734,9 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         for (uint32_t tr : to.triangles) {
             if (cls[tr] == 0) continue;
             const uint32_t root = uf.find(tr);
-            auto [it, inserted] = sheetOfRoot.emplace(root, sheets.size());
-            if (inserted) sheets.emplace_back();
-            sheets[it->second].triangles.push_back({uint32_t(k), tr});
+            auto [it, inserted] = sheetOfRoot.emplace(root, out.sheets.size());
+            if (inserted) out.sheets.emplace_back();
+            out.sheets[it->second].triangles.push_back({k, tr});
             const uint8_t bit = uint8_t(cls[tr] > 0 ? 1 : 2);
             for (int kk = 0; kk < 3; ++kk) {
                 const uint32_t e = edges.edgeOf[3 * size_t(tr) + size_t(kk)];
@@ -626,9 +745,8 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         }
         std::sort(cracks.begin(), cracks.end());
         cracks.erase(std::unique(cracks.begin(), cracks.end()), cracks.end());
-        for (const auto& [e, s] : cracks) sheets[s].cracks.push_back({uint32_t(k), e});
-    }
-
+        for (const auto& [e, s] : cracks) out.sheets[s].cracks.push_back({k, e});
+    });
     // Storage for the query results, accumulated over the views.
     const GlApi& gl = gl_->session->gl;
     const size_t Q = queries.size();
@@ -648,70 +766,73 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
     }
 
-    auto position = [&](uint32_t object, uint32_t vertex) -> const glm::dvec3& {
-        return tris.objects[object].positions[vertex];
-    };
     for (size_t vi = 0; vi < views.size(); ++vi) {
         const LightView& view = views[vi];
-        const PieceBuilder pb(view, nearZ);
-        // Absolute depth margin (metres): far above float rounding of the view's depths.
-        const double depthScale = persp ? L.range + glm::length(w.lsBounds.max - w.lsBounds.min) +
-                                              glm::length(L.position - 0.5 * (w.lsBounds.min + w.lsBounds.max))
-                                        : (view.w1 - view.w0);
-        const double depthEps = 1e-6 * depthScale + 1e-6;
-        // Casters first: the query reads the other passes only at the casters' pixels, so
-        // everything is drawn within their bounding rectangle (scissor), and pieces that
-        // cannot touch a cell the casters reach are dropped. Other pixels are never read.
-        std::vector<RasterPiece> casterPieces;
-        for (const Caster& c : casters) {
-            const auto& tri = w.objects[c.object].mesh->triangles[c.triangle];
-            pb.triangle(position(c.object, tri[0]), position(c.object, tri[1]), position(c.object, tri[2]), 0.0f, c.id,
-                        casterPieces);
-        }
-        PixelRect roi{0, 0, view.width, view.height};
-        CellMask mask(view.width, view.height, options_.collectViewStats);
-        if (!options_.collectViewStats) {
-            if (casterPieces.empty()) continue;  // the bit's group is not in this view
-            roi = PixelRect::empty();
-            for (const RasterPiece& r : casterPieces) {
-                roi.add(reachOf(r, view));
-                mask.mark(reachOf(r, view), double(r.plane2[1]), double(r.plane2[2]));
-            }
-        }
-        mask.finish();
-        // Occluder sheets, each with the pixel rectangle its fragments can reach.
-        struct SheetPieces {
-            std::vector<RasterPiece> pieces;
-            PixelRect rect;
+        const ViewPrep& vp = preps[vi];
+        if (vp.skip) continue;
+        const PieceBuilder& pb = vp.pb;
+        const CellMask& mask = vp.mask;
+        const PixelRect& roi = vp.roi;
+        const double depthEps = vp.depthEps;
+        const float dilatePx = vp.dilatePx;
+        // A triangle whose pixels cannot reach a caster cell: its pieces would be dropped.
+        auto misses = [&](const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, float dilate) {
+            const glm::dvec3 pts[3] = {a, b, c};
+            const std::optional<PixelRect> r = hullReach(pts, 3, pb, dilate);
+            return r && !mask.touches(*r);
         };
-        std::vector<SheetPieces> sp;
-        for (const Sheet& s : sheets) {
-            SheetPieces p;
-            for (const TriRef& tr : s.triangles) {
+        // Per object, in parallel: its occluder sheets, each with the pixel rectangle its
+        // fragments can reach, and its receivers' pieces.
+        std::vector<ObjectPieces> pieces(near.size());
+        tbb::parallel_for(size_t(0), near.size(), [&](size_t i) {
+            ObjectPieces& out = pieces[i];
+            {
+                const std::array<glm::dvec3, 8> corners = boxCorners(tris.objects[near[i]].lsBounds);
+                const std::optional<PixelRect> r = hullReach(corners.data(), corners.size(), pb, dilatePx);
+                if (r && !mask.touches(*r)) return;  // nothing of it reaches this view's casters
+            }
+            for (const Sheet& s : surfaces[i].sheets) {
+                SheetPieces p;
+                for (const TriRef& tr : s.triangles) {
+                    const auto& tri = w.objects[tr.object].mesh->triangles[tr.triangle];
+                    const glm::dvec3 &a = position(tr.object, tri[0]), &b = position(tr.object, tri[1]),
+                                     &c = position(tr.object, tri[2]);
+                    if (misses(a, b, c, 0.0f)) continue;
+                    pb.triangle(a, b, c, 0.0f, 0, p.pieces);
+                }
+                keepTouching(p.pieces, 0, mask, view);
+                if (p.pieces.empty()) continue;  // no triangle of the sheet reaches the casters
+                for (const TriRef& cr : s.cracks) {
+                    const auto& ends = work.edges.at(w.objects[cr.object].mesh)->ends[cr.triangle];
+                    pb.segment(position(cr.object, ends[0]), position(cr.object, ends[1]), p.pieces);
+                }
+                keepTouching(p.pieces, 0, mask, view);
+                p.rect = PixelRect::empty();
+                for (const RasterPiece& r : p.pieces) p.rect.add(reachOf(r, view));
+                p.rect = p.rect.intersect(roi);
+                if (p.rect.isEmpty()) continue;
+                // A sheet wholly behind every caster it overlaps blocks none of them; leaving
+                // an occluder out only ever admits more.
+                double sheetNear = 1e300, casterFar, casterNear;
+                for (const RasterPiece& r : p.pieces)
+                    if (r.misc[2] == 0.0f) sheetNear = std::min(sheetNear, double(r.plane2[1]));
+                mask.depthRange(p.rect, casterNear, casterFar);
+                if (sheetNear > casterFar + 1e-3 * (1 + std::abs(casterFar))) continue;
+                out.sheets.push_back(std::move(p));
+            }
+            for (const TriRef& tr : surfaces[i].receivers) {
                 const auto& tri = w.objects[tr.object].mesh->triangles[tr.triangle];
-                pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]), 0.0f,
-                            0, p.pieces);
+                const glm::dvec3 &a = position(tr.object, tri[0]), &b = position(tr.object, tri[1]),
+                                 &c = position(tr.object, tri[2]);
+                if (misses(a, b, c, dilatePx)) continue;
+                const size_t before = out.receivers.size();
+                pb.triangle(a, b, c, dilatePx, 0, out.receivers);
+                keepTouching(out.receivers, before, mask, view, !anyReceiver, biasEff, depthEps);
             }
-            keepTouching(p.pieces, 0, mask, view);
-            if (p.pieces.empty()) continue;  // no triangle of the sheet reaches the casters
-            for (const TriRef& cr : s.cracks) {
-                const auto& ends = work.edges[w.objects[cr.object].mesh]->ends[cr.triangle];
-                pb.segment(position(cr.object, ends[0]), position(cr.object, ends[1]), p.pieces);
-            }
-            keepTouching(p.pieces, 0, mask, view);
-            p.rect = PixelRect::empty();
-            for (const RasterPiece& r : p.pieces) p.rect.add(reachOf(r, view));
-            p.rect = p.rect.intersect(roi);
-            if (p.rect.isEmpty()) continue;
-            // A sheet wholly behind every caster it overlaps blocks none of them; leaving an
-            // occluder out only ever admits more.
-            double sheetNear = 1e300, casterFar, casterNear;
-            for (const RasterPiece& r : p.pieces)
-                if (r.misc[2] == 0.0f) sheetNear = std::min(sheetNear, double(r.plane2[1]));
-            mask.depthRange(p.rect, casterNear, casterFar);
-            if (sheetNear > casterFar + 1e-3 * (1 + std::abs(casterFar))) continue;
-            sp.push_back(std::move(p));
-        }
+        });
+        std::vector<SheetPieces> sp;
+        for (ObjectPieces& op : pieces)
+            for (SheetPieces& s : op.sheets) sp.push_back(std::move(s));
         // Batches: sheets whose rectangles are disjoint cannot touch the same pixel, so
         // they share one work pass and one resolve.
         std::vector<std::vector<size_t>> batches;
@@ -746,20 +867,10 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
             batchRange.push_back({first, GLsizei(all.size()) - first});
             batchRects.push_back({firstRect, GLsizei(rects.size() / 2) - firstRect});
         }
-        float dilatePx = 0.0f;
-        if (!persp && L.filterRadius > 0)
-            dilatePx = float(L.filterRadius *
-                             std::max(view.width / (view.u1 - view.u0), view.height / (view.v1 - view.v0)));
         const GLint recvFirst = GLint(all.size());
-        for (const TriRef& tr : receivers) {
-            const auto& tri = w.objects[tr.object].mesh->triangles[tr.triangle];
-            const size_t before = all.size();
-            pb.triangle(position(tr.object, tri[0]), position(tr.object, tri[1]), position(tr.object, tri[2]),
-                        dilatePx, 0, all);
-            keepTouching(all, before, mask, view, !anyReceiver, biasEff, depthEps);
-        }
+        for (const ObjectPieces& op : pieces) all.insert(all.end(), op.receivers.begin(), op.receivers.end());
         const GLint castFirst = GLint(all.size());
-        all.insert(all.end(), casterPieces.begin(), casterPieces.end());
+        all.insert(all.end(), vp.casterPieces.begin(), vp.casterPieces.end());
         const GLint end = GLint(all.size());
 
         // Upload and draw.
@@ -860,6 +971,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.UseProgram(0);
         gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
         if (Status s = gl.check("the confirmation passes"); !s) return s;
+        stats.gpuPasses += batches.size() + 2;  // occluder batches (each drawn and resolved), receivers, casters
 
         if (options_.collectViewStats) {
             ConfirmViewStats vs;

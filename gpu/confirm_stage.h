@@ -110,7 +110,7 @@ private:
     struct Gl;
     struct LightWork;
     Status ensureGl();
-    Status runLight(const BakeWindow& w, ChunkVerdicts& cv, int light, LightWork& work);
+    Status runLight(const BakeWindow& w, ChunkVerdicts& cv, int light, LightWork& work, StageStats& stats);
     GpuConfirmOptions options_;
     std::unique_ptr<Gl> gl_;
     std::vector<GroupPixels> groups_;

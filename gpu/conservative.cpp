@@ -105,6 +105,22 @@ void PieceBuilder::segment(const glm::dvec3& a, const glm::dvec3& b, std::vector
     emit(seg, 0.0f, 1.0f, 0, out);
 }
 
+bool PieceBuilder::hullBounds(const glm::dvec3* pts, size_t n, double bounds[4]) const {
+    // Projection is affine (orthographic) or, for points beyond the near plane, projective
+    // with z > 0: either maps the hull of the points onto the hull of their images, and
+    // clipping only takes parts of it.
+    bounds[0] = bounds[1] = 1e300;
+    bounds[2] = bounds[3] = -1e300;
+    for (size_t k = 0; k < n; ++k) {
+        const glm::dvec3 v = view_.toView(pts[k]);
+        if (view_.perspective && !(v.z >= nearZ_)) return false;
+        const glm::dvec2 p = view_.viewToPixel(v);
+        bounds[0] = std::min(bounds[0], p.x), bounds[1] = std::min(bounds[1], p.y);
+        bounds[2] = std::max(bounds[2], p.x), bounds[3] = std::max(bounds[3], p.y);
+    }
+    return n > 0;
+}
+
 void PieceBuilder::emit(const glm::dvec3* v, float dilatePx, float kind, uint32_t id,
                         std::vector<RasterPiece>& out) const {
     glm::dvec2 P[3];

@@ -53,6 +53,12 @@ public:
                   std::vector<RasterPiece>& out) const;
     // Appends the segment a-b (an edge that cracks an occluder's cover).
     void segment(const glm::dvec3& a, const glm::dvec3& b, std::vector<RasterPiece>& out) const;
+    // Pixel bounds (x0, y0, x1, y1, unclamped) of the convex hull of pts: every piece
+    // triangle() or segment() makes from points within that hull has its box inside them,
+    // up to rounding. False when they cannot be bounded so: a perspective view with a
+    // point not beyond the near plane (clipping there changes the shape).
+    bool hullBounds(const glm::dvec3* pts, size_t n, double bounds[4]) const;
+    const LightView& view() const { return view_; }
 
 private:
     void emit(const glm::dvec3* v, float dilatePx, float kind, uint32_t id, std::vector<RasterPiece>& out) const;

@@ -155,6 +155,7 @@ WindowTriangles::WindowTriangles(const BakeWindow& w) {
             if (hasRepeatedVertex(o.mesh->positions[tri[0]], o.mesh->positions[tri[1]], o.mesh->positions[tri[2]]))
                 continue;
             out.triangles.push_back(uint32_t(t));
+            for (uint32_t v : tri) out.lsBounds.extend(out.positions[v]);
         }
     }
 }

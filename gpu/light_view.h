@@ -68,6 +68,7 @@ struct WindowTriangles {
     struct Object {
         std::vector<glm::dvec3> positions;  // per mesh vertex, window-local
         std::vector<uint32_t> triangles;    // mesh triangle indices with three distinct vertices
+        Aabb lsBounds;                      // of those triangles' vertices, from these positions
     };
     std::vector<Object> objects;  // parallel to BakeWindow::objects
     explicit WindowTriangles(const BakeWindow& w);
