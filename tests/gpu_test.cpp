@@ -36,6 +36,7 @@
 #include "gpu/render.h"
 #include "raycast/raycast_stage.h"
 #include "tests/support/bake_lookup.h"
+#include "tests/support/sample_space.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 
@@ -794,6 +795,48 @@ TEST(GpuConfirm, NeverCullsABitWithAWitnessOnRandomWorlds) {
     EXPECT_GT(proved, 0) << "the stage should prove some bits 0 on these worlds";
     RecordProperty("witnesses", witnesses);
     RecordProperty("gpuCulled", proved);
+}
+
+// The pruning (casters' pixel cells, objects and triangles that cannot reach them, sheets
+// behind every caster, receivers never behind one) only leaves out what cannot change a
+// count: with it and without it (collectViewStats draws whole views), every examined bit
+// has the same lit and passed sample counts, so the same verdict. Terrain groups included,
+// so that large casters are pruned against too.
+TEST(GpuConfirm, PruningChangesNoCount) {
+    REQUIRE_GL();
+    std::vector<NamedScene> scenes = gpuKnownAnswerScenes();
+    scenes.push_back({"sample", sampleSpace});
+    for (uint64_t seed = 1; seed <= 4; ++seed)
+        scenes.push_back({seed % 2 ? "random" : "gappy", [seed] { return seed % 2 ? randomWorld(seed) : gappyWorld(seed); }});
+    int compared = 0, culled = 0;
+    for (size_t k = 0; k < scenes.size(); ++k) {
+        SCOPED_TRACE(std::string(scenes[k].name) + " #" + std::to_string(k));
+        const SpaceBuilder b = scenes[k].make();
+        std::unique_ptr<Loaded> pruned = load(b, "pruned" + std::to_string(k)), whole = load(b, "whole" + std::to_string(k));
+        ASSERT_TRUE(pruned && whole);
+        gpu::GpuConfirmOptions o;
+        o.resolution = 128;
+        o.includeTerrain = true;
+        gpu::GpuConfirmStage a(o);
+        o.collectViewStats = true;
+        gpu::GpuConfirmStage c(o);
+        runStage(a, *pruned);
+        runStage(c, *whole);
+        ASSERT_EQ(a.passedPixels().size(), c.passedPixels().size());
+        for (size_t q = 0; q < a.passedPixels().size(); ++q) {
+            const gpu::GroupPixels &p = a.passedPixels()[q], &w = c.passedPixels()[q];
+            ASSERT_EQ(p.object, w.object);
+            ASSERT_EQ(p.group, w.group);
+            ASSERT_EQ(p.light, w.light);
+            EXPECT_EQ(p.litSamples, w.litSamples) << "object " << p.object << " group " << p.group << " light " << p.light;
+            EXPECT_EQ(p.passedSamples, w.passedSamples) << "object " << p.object << " group " << p.group << " light " << p.light;
+            EXPECT_EQ(pruned->verdicts.at(p.object, p.group, p.light).verdict, whole->verdicts.at(w.object, w.group, w.light).verdict);
+            ++compared;
+            culled += p.passedSamples == 0;
+        }
+    }
+    EXPECT_GT(compared, 100);
+    EXPECT_GT(culled, 0);
 }
 
 // --- Render --------------------------------------------------------------------------------
