@@ -441,10 +441,10 @@ struct GpuConfirmStage::Gl {
     GLint64 maxStorageBlock = 0;  // bytes, GL_MAX_SHADER_STORAGE_BLOCK_SIZE
 };
 
-// Per run: the window's triangles and, per mesh, its edges.
+// Per run: the window's triangles, and the stage's edges per mesh.
 struct GpuConfirmStage::LightWork {
     const WindowTriangles* tris = nullptr;
-    std::unordered_map<const Mesh*, std::unique_ptr<MeshEdges>> edges;
+    std::unordered_map<const Mesh*, std::unique_ptr<MeshEdges>>& edges;
     const MeshEdges& edgesOf(const Mesh* mesh, const std::vector<uint32_t>& triangles) {
         auto& e = edges[mesh];
         if (!e) e = std::make_unique<MeshEdges>(*mesh, triangles);
@@ -531,8 +531,7 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     if (std::none_of(lights.begin(), lights.end(), [](bool b) { return b; })) return Status::ok();
     if (Status s = ensureGl(); !s) return s;
     WindowTriangles tris(w);
-    LightWork work;
-    work.tris = &tris;
+    LightWork work{&tris, edges_};
     for (int l = 0; l < cv.lightCount; ++l) {
         if (!lights[size_t(l)]) continue;
         const size_t first = groups_.size();

@@ -41,6 +41,7 @@
 #pragma once
 
 #include <memory>
+#include <unordered_map>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -48,6 +49,8 @@
 #include "core/stage.h"
 
 namespace shadowcull::gpu {
+
+struct MeshEdges;  // gpu/conservative.h
 
 struct GpuConfirmOptions {
     int resolution = 1024;         // pixels per side of each light view
@@ -115,6 +118,10 @@ private:
     std::unique_ptr<Gl> gl_;
     std::vector<GroupPixels> groups_;
     std::vector<ConfirmViewStats> viewStats_;
+    // Per mesh, its edge adjacency, kept across windows: a window that slides keeps most of
+    // its meshes. Keyed by the mesh's address, so one stage serves one loaded space (as the
+    // raycast stage's caches do).
+    std::unordered_map<const Mesh*, std::unique_ptr<MeshEdges>> edges_;
 };
 
 }  // namespace shadowcull::gpu
