@@ -368,7 +368,8 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     auto last = std::chrono::steady_clock::now();
     const auto t0 = last;
     const long rssStart = procStatusKiB("VmRSS:");
-    auto progress = [&](size_t done, size_t total) {
+    auto progress = [&](const cli::BakeProgress& p) {
+        const size_t done = p.done, total = p.total;
         if (done == 1) rssFirstChunk = procStatusKiB("VmRSS:");
         if (done == (total + 1) / 2) rssMidChunk = procStatusKiB("VmRSS:");
         if (done == total) rssLastChunk = procStatusKiB("VmRSS:");
@@ -377,7 +378,7 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
         const double el = since(t0);
         std::fprintf(stderr, "[%s%s] %zu/%zu chunks, %.0f s, ETA %.0f s, RSS %.0f MiB\n", spec.name.c_str(),
                      gpuBaseline ? " gpu method" : "", done, total, el,
-                     el / double(done) * double(total - done), procStatusKiB("VmRSS:") / 1024.0);
+                     p.etaSeconds(el), procStatusKiB("VmRSS:") / 1024.0);
     };
     rusage ru0{};
     getrusage(RUSAGE_SELF, &ru0);

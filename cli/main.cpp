@@ -24,33 +24,53 @@ using namespace shadowcull::cli;
 
 namespace {
 
-// A one-line progress bar on a terminal (stderr), redrawn at most every 100 ms.
+// Progress on stderr: on a terminal a one-line bar redrawn at most every 100 ms; in a log
+// (not a terminal) a line every 10 s and one at the end. The ETA counts only chunks that
+// were baked, not those --resume skipped.
 class ProgressBar {
 public:
-    explicit ProgressBar(bool enabled) : enabled_(enabled && isatty(STDERR_FILENO)) {}
-    void operator()(size_t done, size_t total) {
+    explicit ProgressBar(bool enabled) : enabled_(enabled), tty_(isatty(STDERR_FILENO)) {}
+    void operator()(const BakeProgress& p) {
         if (!enabled_) return;
         auto now = std::chrono::steady_clock::now();
-        if (done < total && now - last_ < std::chrono::milliseconds(100)) return;
+        const bool end = p.done == p.total;
+        if (!end && now - last_ < (tty_ ? std::chrono::milliseconds(100) : std::chrono::milliseconds(10000))) return;
         last_ = now;
         const double elapsed = std::chrono::duration<double>(now - start_).count();
-        const int width = 30;
-        const int filled = total ? int(width * done / total) : width;
-        const double eta = done ? elapsed * double(total - done) / double(done) : 0.0;
-        std::fprintf(stderr, "\r[%.*s%*s] %zu/%zu chunks  %.0fs elapsed, ETA %.0fs ", filled,
-                     "##############################", width - filled, "", done, total, elapsed, eta);
-        if (done == total) std::fprintf(stderr, "\n");
+        const double eta = p.etaSeconds(elapsed);
+        const std::string etaText = end ? "" : eta < 0 ? ", ETA unknown" : ", ETA " + formatDuration(eta);
+        const std::string resumed = p.resumed ? " (" + std::to_string(p.resumed) + " unchanged)" : "";
+        if (tty_) {
+            const int width = 30;
+            const int filled = p.total ? int(width * p.done / p.total) : width;
+            std::fprintf(stderr, "\r[%.*s%*s] %zu/%zu chunks%s  %s elapsed%s   ", filled,
+                         "##############################", width - filled, "", p.done, p.total, resumed.c_str(),
+                         formatDuration(elapsed).c_str(), etaText.c_str());
+            if (end) std::fprintf(stderr, "\n");
+        } else {
+            std::fprintf(stderr, "shadowcull: %zu/%zu chunks%s, %s elapsed%s\n", p.done, p.total, resumed.c_str(),
+                         formatDuration(elapsed).c_str(), etaText.c_str());
+        }
         std::fflush(stderr);
     }
 
 private:
-    bool enabled_;
-    std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), last_{};
+    // 42 s, 7 min 05 s, 2 h 03 min.
+    static std::string formatDuration(double s) {
+        char buf[32];
+        const long t = long(s + 0.5);
+        if (t < 60) std::snprintf(buf, sizeof buf, "%ld s", t);
+        else if (t < 3600) std::snprintf(buf, sizeof buf, "%ld min %02ld s", t / 60, t % 60);
+        else std::snprintf(buf, sizeof buf, "%ld h %02ld min", t / 3600, t / 60 % 60);
+        return buf;
+    }
+    bool enabled_, tty_;
+    std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), last_ = start_;
 };
 
 int runBakeCommand(const BakeOptions& opt, const std::string& resultsPath, bool quiet) {
     ProgressBar bar(!quiet);
-    Expected<BakeResult> r = runBake(opt, [&](size_t d, size_t t) { bar(d, t); });
+    Expected<BakeResult> r = runBake(opt, [&](const BakeProgress& p) { bar(p); });
     if (!r) {
         std::fprintf(stderr, "shadowcull: error: %s\n", r.error().what().c_str());
         std::fprintf(stderr, "shadowcull: bake stopped; no chunk file was changed%s\n",

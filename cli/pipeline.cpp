@@ -272,7 +272,7 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
             const std::string current = readFile(target, ok);
             if (ok && state.upToDate(chunkName, inputHash, current)) {
                 ++result.chunksResumed;
-                if (progress) progress(k + 1, targets.size());
+                if (progress) progress({k + 1, targets.size(), size_t(result.chunksResumed)});
                 continue;
             }
         }
@@ -320,7 +320,7 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
             result.writeSeconds += since(tw);
         }
         result.chunks.push_back(std::move(cv));
-        if (progress) progress(k + 1, targets.size());
+        if (progress) progress({k + 1, targets.size(), size_t(result.chunksResumed)});
     }
 
     // 4. Commit: one rename per file. Each rename is atomic, so an interruption here leaves

@@ -105,8 +105,19 @@ struct ChunkBake {
 };
 Expected<ChunkBake> bakeChunk(const BakeOptions& options, ChunkCoord chunk);
 
-// Progress callback: (chunks done, chunks total).
-using Progress = std::function<void(size_t, size_t)>;
+// Where a bake is, after each chunk.
+struct BakeProgress {
+    size_t done = 0;     // chunks finished (baked, or skipped by --resume)
+    size_t total = 0;
+    size_t resumed = 0;  // of those done, skipped as unchanged (cost almost nothing)
+    // Seconds still to go, from the time per baked chunk so far; negative while no chunk
+    // has been baked (unknown).
+    double etaSeconds(double elapsedSeconds) const {
+        const size_t baked = done - resumed;
+        return baked ? elapsedSeconds / double(baked) * double(total - done) : -1.0;
+    }
+};
+using Progress = std::function<void(const BakeProgress&)>;
 
 // Runs the whole bake. On error nothing has been written (or, for an I/O failure while
 // committing, every chunk file is either as it was or complete).

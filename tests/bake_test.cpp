@@ -431,6 +431,28 @@ TEST(Cli, ChunkOptionBakesOnlyTheNamedChunk) {
     EXPECT_EQ(runCli("bake '" + (dir / "space").string() + "' --frobnicate", dir / "o", dir / "e"), 2);
 }
 
+// Progress: in a log (stderr not a terminal) one line at the end at least, with the
+// chunks --resume skipped; the ETA counts only the chunks that were baked.
+TEST(Cli, ProgressInALogAndEtaFromBakedChunks) {
+    cli::BakeProgress p{10, 100, 5};
+    EXPECT_DOUBLE_EQ(p.etaSeconds(50.0), 900.0);  // 5 baked in 50 s: 10 s each, 90 to go
+    p.resumed = 10;
+    EXPECT_LT(p.etaSeconds(50.0), 0.0);  // nothing baked yet: unknown
+    p = {100, 100, 40};
+    EXPECT_DOUBLE_EQ(p.etaSeconds(60.0), 0.0);
+
+    SpaceBuilder b = manyChunks(3);
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    const std::string bake = "bake '" + (dir / "space").string() + "' --out '" + (dir / "out").string() + "' --resume";
+    ASSERT_EQ(runCli(bake, dir / "o", dir / "e"), 0) << readText(dir / "e");
+    EXPECT_NE(readText(dir / "e").find("shadowcull: 9/9 chunks, "), std::string::npos) << readText(dir / "e");
+    ASSERT_EQ(runCli(bake, dir / "o", dir / "e"), 0) << readText(dir / "e");
+    EXPECT_NE(readText(dir / "e").find("shadowcull: 9/9 chunks (9 unchanged), "), std::string::npos) << readText(dir / "e");
+    ASSERT_EQ(runCli(bake + " --quiet", dir / "o", dir / "e"), 0);
+    EXPECT_EQ(readText(dir / "e"), "");
+}
+
 // The results do not depend on the number of threads (witness search per group is
 // sequential; Embree's hits are ordered by distance, then object and triangle).
 TEST(Cli, ResultsAreTheSameForAnyThreadCount) {
