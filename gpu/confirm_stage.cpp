@@ -410,6 +410,12 @@ struct ViewPrep {
     float dilatePx = 0;   // receivers' dilation (directional light with a filter radius)
     bool skip = false;    // no caster in this view
     ViewPrep(const LightView& view, double nearZ, bool all) : pb(view, nearZ), mask(view.width, view.height, all) {}
+    // No piece made from anything within the hull of pts can reach a caster cell (so
+    // keepTouching would drop them all).
+    bool misses(const glm::dvec3* pts, size_t n, float dilate) const {
+        const std::optional<PixelRect> r = hullReach(pts, n, pb, dilate);
+        return r && !mask.touches(*r);
+    }
 };
 
 // One object's part for one light: its occluder sheets and receiver triangles.
@@ -654,14 +660,10 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         const WindowTriangles::Object& to = tris.objects[k];
         if (to.triangles.empty()) continue;
         const std::array<glm::dvec3, 8> corners = boxCorners(to.lsBounds);
-        for (const ViewPrep& vp : preps) {
-            if (vp.skip) continue;
-            const std::optional<PixelRect> r = hullReach(corners.data(), corners.size(), vp.pb, vp.dilatePx);
-            if (!r || vp.mask.touches(*r)) {
-                near.push_back(uint32_t(k));
-                work.edgesOf(w.objects[k].mesh, to.triangles);  // built here: read in parallel below
-                break;
-            }
+        if (std::any_of(preps.begin(), preps.end(),
+                        [&](const ViewPrep& vp) { return !vp.skip && !vp.misses(corners.data(), 8, vp.dilatePx); })) {
+            near.push_back(uint32_t(k));
+            work.edgesOf(w.objects[k].mesh, to.triangles);  // built here: read in parallel below
         }
     }
 
@@ -695,12 +697,12 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
                 if (pg.twoSided() || front <= tol) {  // not certainly facing away
                     Aabb tb;
                     tb.extend(a), tb.extend(b), tb.extend(c);
-                    bool out_ = persp && distanceToBox(L.position, tb) > L.range * (1 + 1e-6) + 1e-6;
-                    if (!out_ && terrainRule) {
+                    bool excluded = persp && distanceToBox(L.position, tb) > L.range * (1 + 1e-6) + 1e-6;
+                    if (!excluded && terrainRule) {
                         const std::optional<double> h = w.lsTerrainMinOver(tb.min.x, tb.min.z, tb.max.x, tb.max.z);
-                        out_ = h && tb.max.y < *h - w.terrainTolerance - 1e-6 * (std::abs(*h) + 1.0);
+                        excluded = h && tb.max.y < *h - w.terrainTolerance - 1e-6 * (std::abs(*h) + 1.0);
                     }
-                    if (!out_) out.receivers.push_back({k, tr});
+                    if (!excluded) out.receivers.push_back({k, tr});
                 }
             }
         }
@@ -746,6 +748,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         cracks.erase(std::unique(cracks.begin(), cracks.end()), cracks.end());
         for (const auto& [e, s] : cracks) out.sheets[s].cracks.push_back({k, e});
     });
+
     // Storage for the query results, accumulated over the views.
     const GlApi& gl = gl_->session->gl;
     const size_t Q = queries.size();
@@ -774,22 +777,17 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         const PixelRect& roi = vp.roi;
         const double depthEps = vp.depthEps;
         const float dilatePx = vp.dilatePx;
-        // A triangle whose pixels cannot reach a caster cell: its pieces would be dropped.
         auto misses = [&](const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, float dilate) {
             const glm::dvec3 pts[3] = {a, b, c};
-            const std::optional<PixelRect> r = hullReach(pts, 3, pb, dilate);
-            return r && !mask.touches(*r);
+            return vp.misses(pts, 3, dilate);
         };
         // Per object, in parallel: its occluder sheets, each with the pixel rectangle its
         // fragments can reach, and its receivers' pieces.
         std::vector<ObjectPieces> pieces(near.size());
         tbb::parallel_for(size_t(0), near.size(), [&](size_t i) {
             ObjectPieces& out = pieces[i];
-            {
-                const std::array<glm::dvec3, 8> corners = boxCorners(tris.objects[near[i]].lsBounds);
-                const std::optional<PixelRect> r = hullReach(corners.data(), corners.size(), pb, dilatePx);
-                if (r && !mask.touches(*r)) return;  // nothing of it reaches this view's casters
-            }
+            const std::array<glm::dvec3, 8> corners = boxCorners(tris.objects[near[i]].lsBounds);
+            if (vp.misses(corners.data(), 8, dilatePx)) return;  // nothing of it reaches this view's casters
             for (const Sheet& s : surfaces[i].sheets) {
                 SheetPieces p;
                 for (const TriRef& tr : s.triangles) {
