@@ -26,8 +26,8 @@ int main(int argc, char** argv) {
         {"sample (3x3 chunks)", sampleSpace},
         {"generated 10x10 chunks", [] { return manyChunks(10); }},
     };
-    std::printf("| world | stage | bits examined | proved 0 | proved 1 | seconds | us per examined bit | rays | exact tests |\n");
-    std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    std::printf("| world | stage | bits examined | proved 0 | proved 1 | seconds | us per examined bit | rays | exact tests | GPU passes |\n");
+    std::printf("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (size_t w = 0; w < worlds.size(); ++w) {
         const fs::path dir = work / std::to_string(w);
         worlds[w].second().write(dir.string());
@@ -42,13 +42,13 @@ int main(int argc, char** argv) {
         for (const cli::StageTiming& st : r->stages) {
             const StageStats& s = st.stats;
             const double perBit = s.bitsExamined ? 1e6 * s.seconds / double(s.bitsExamined) : 0.0;
-            std::printf("| %s | %s | %llu | %llu | %llu | %.3f | %.1f | %llu | %llu |\n", worlds[w].first.c_str(),
+            std::printf("| %s | %s | %llu | %llu | %llu | %.3f | %.1f | %llu | %llu | %llu |\n", worlds[w].first.c_str(),
                         st.name.c_str(), (unsigned long long)s.bitsExamined, (unsigned long long)s.provedCulled,
                         (unsigned long long)s.provedKept, s.seconds, perBit, (unsigned long long)s.raysCast,
-                        (unsigned long long)s.exactTests);
+                        (unsigned long long)s.exactTests, (unsigned long long)s.gpuPasses);
         }
         const cli::BitCounts c = cli::countBits(*r);
-        std::printf("| %s | **all** | %llu bits | %llu | %llu | %.3f | | | undecided %llu |\n", worlds[w].first.c_str(),
+        std::printf("| %s | **all** | %llu bits | %llu | %llu | %.3f | | | undecided %llu | |\n", worlds[w].first.c_str(),
                     (unsigned long long)c.bits, (unsigned long long)c.culled, (unsigned long long)c.provedKept,
                     r->totalSeconds, (unsigned long long)c.undecided);
     }

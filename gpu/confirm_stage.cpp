@@ -53,6 +53,7 @@
 #include <numeric>
 #include <optional>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <tbb/parallel_for.h>
 
@@ -537,6 +538,13 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     if (std::none_of(lights.begin(), lights.end(), [](bool b) { return b; })) return Status::ok();
     if (Status s = ensureGl(); !s) return s;
     WindowTriangles tris(w);
+    // The window slid: keep the edges of the meshes still loaded, drop the others (the
+    // terrains of the chunks left behind), so that memory follows the window, not the world.
+    {
+        std::unordered_set<const Mesh*> loaded;
+        for (const WindowObject& o : w.objects) loaded.insert(o.mesh);
+        for (auto it = edges_.begin(); it != edges_.end();) it = loaded.count(it->first) ? std::next(it) : edges_.erase(it);
+    }
     LightWork work{&tris, edges_};
     for (int l = 0; l < cv.lightCount; ++l) {
         if (!lights[size_t(l)]) continue;

@@ -108,6 +108,8 @@ public:
     const std::vector<GroupPixels>& passedPixels() const { return groups_; }
     // Per light view coverage of the last run (only with collectViewStats).
     const std::vector<ConfirmViewStats>& viewStats() const { return viewStats_; }
+    // Meshes whose edge adjacency the stage holds (those of the last window it drew).
+    size_t meshesWithEdges() const { return edges_.size(); }
 
 private:
     struct Gl;
@@ -118,9 +120,9 @@ private:
     std::unique_ptr<Gl> gl_;
     std::vector<GroupPixels> groups_;
     std::vector<ConfirmViewStats> viewStats_;
-    // Per mesh, its edge adjacency, kept across windows: a window that slides keeps most of
-    // its meshes. Keyed by the mesh's address, so one stage serves one loaded space (as the
-    // raycast stage's caches do).
+    // Per mesh of the last window, its edge adjacency, kept while the window slides (it keeps
+    // most of its meshes). Keyed by the mesh's address, so one stage serves one loaded space
+    // (as the raycast stage's caches do).
     std::unordered_map<const Mesh*, std::unique_ptr<MeshEdges>> edges_;
 };
 

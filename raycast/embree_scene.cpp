@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <unordered_set>
 
 
 namespace shadowcull::raycast {
@@ -35,11 +36,14 @@ RTCGeometry makeTriangles(RTCDevice device, const Mesh& mesh, const std::vector<
 
 }  // namespace
 
+void EmbreeScenes::release(Prototype& proto) {
+    if (proto.opaque && proto.opaque != proto.all) rtcReleaseScene(proto.opaque);
+    rtcReleaseScene(proto.all);
+    proto = {};
+}
+
 EmbreeScenes::~EmbreeScenes() {
-    for (auto& [mesh, proto] : prototypes_) {
-        if (proto.opaque && proto.opaque != proto.all) rtcReleaseScene(proto.opaque);
-        rtcReleaseScene(proto.all);
-    }
+    for (auto& [mesh, proto] : prototypes_) release(proto);
 }
 
 const EmbreeScenes::Prototype& EmbreeScenes::prototype(const Mesh* mesh, bool terrain) {
@@ -106,7 +110,20 @@ RTCScene EmbreeScenes::placeAll(const BakeWindow& w, bool opaque) {
 
 WindowScene EmbreeScenes::buildWindow(const BakeWindow& w) {
     RTCScene all = placeAll(w, false);
-    return WindowScene(all, w.hasAlphaTested ? placeAll(w, true) : all);
+    WindowScene scene(all, w.hasAlphaTested ? placeAll(w, true) : all);
+    // The window slid: the prototypes of meshes it no longer holds (the terrains of the
+    // chunks left behind) are released, so that memory follows the window, not the world.
+    std::unordered_set<const Mesh*> loaded;
+    for (const WindowObject& o : w.objects) loaded.insert(o.mesh);
+    for (auto it = prototypes_.begin(); it != prototypes_.end();) {
+        if (loaded.count(it->first)) {
+            ++it;
+        } else {
+            release(it->second);
+            it = prototypes_.erase(it);
+        }
+    }
+    return scene;
 }
 
 void skipAlphaTested(const RTCFilterFunctionNArguments* args) {

@@ -57,8 +57,10 @@ public:
     EmbreeScenes(const EmbreeScenes&) = delete;
     EmbreeScenes& operator=(const EmbreeScenes&) = delete;
 
-    // The committed scenes of the window.
+    // The committed scenes of the window. Prototypes of meshes the window does not hold
+    // are released (those of the previous window that it left behind).
     WindowScene buildWindow(const BakeWindow& window);
+    size_t prototypeCount() const { return prototypes_.size(); }
 
 private:
     // A mesh's scenes, in mesh coordinates less `offset` (terrain: its rounded middle
@@ -70,6 +72,7 @@ private:
         glm::dvec3 offset{0.0};
     };
     const Prototype& prototype(const Mesh* mesh, bool terrain);
+    void release(Prototype& proto);
     RTCScene placeAll(const BakeWindow& w, bool opaque);
     RTCDevice device_;
     std::unordered_map<const Mesh*, Prototype> prototypes_;

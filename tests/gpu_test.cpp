@@ -839,6 +839,31 @@ TEST(GpuConfirm, PruningChangesNoCount) {
     EXPECT_GT(culled, 0);
 }
 
+// The window slides: the stage keeps the edge adjacency of the meshes the window still
+// holds and drops the rest (each chunk's terrain), so memory follows the window.
+TEST(GpuConfirm, EdgesFollowTheWindow) {
+    REQUIRE_GL();
+    const fs::path dir = freshTestDir("-slide");
+    manyChunks(5).write(dir.string());
+    Expected<Space> space = loadSpace(dir.string(), "");
+    ASSERT_TRUE(space) << space.error().what();
+    TerrainMeshes terrain;
+    gpu::GpuConfirmStage stage({64});
+    size_t held = 0;
+    for (ChunkCoord c : {ChunkCoord{0, 0}, ChunkCoord{4, 4}, ChunkCoord{3, 3}}) {
+        const BakeWindow w = buildWindow(*space, c, terrain);
+        ChunkVerdicts cv = makeChunkVerdicts(*space, w);
+        StageStats st;
+        ASSERT_TRUE(stage.run(w, cv, st));
+        ASSERT_GT(st.bitsExamined, 0u);
+        std::set<const Mesh*> meshes;
+        for (const WindowObject& o : w.objects) meshes.insert(o.mesh);
+        EXPECT_LE(stage.meshesWithEdges(), meshes.size()) << "window " << c.x << "," << c.z;
+        held = std::max(held, stage.meshesWithEdges());
+    }
+    EXPECT_GT(held, 0u);
+}
+
 // --- Render --------------------------------------------------------------------------------
 
 std::vector<unsigned char> readPngRgb(const std::string& path, int& w, int& h) {

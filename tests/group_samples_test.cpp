@@ -1,10 +1,15 @@
 // Sample points for witness rays: on the group, spread by area, deterministic.
 
+#include <set>
+
 #include <gtest/gtest.h>
 
 #include <glm/geometric.hpp>
 
+#include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
+#include "tests/support/space_builder.h"
+#include "tests/test_files.h"
 
 using namespace shadowcull;
 
@@ -102,4 +107,36 @@ TEST(GroupSamples, TheCacheSamplesEachMeshOnceAndPlacesItPerObject) {
     const glm::dvec3 local = raycast::sampleMeshGroup(m, 0, 32, 100)[0];
     EXPECT_EQ(cache.placed(b, 0)[0], b.lsTransform.apply(local));
     EXPECT_EQ(cache.placed(a, 0)[0], a.lsTransform.apply(local));
+}
+
+// The window slides: prototypes of the meshes it left behind (each chunk's terrain) are
+// released, so the scenes held follow the window, not the world.
+TEST(EmbreeScenes, PrototypesFollowTheWindow) {
+    const std::filesystem::path dir = shadowcull::testing::freshTestDir();
+    shadowcull::testing::manyChunks(5).write(dir.string());
+    Expected<Space> space = loadSpace(dir.string(), "");
+    ASSERT_TRUE(space) << space.error().what();
+    RTCDevice device = rtcNewDevice(nullptr);
+    ASSERT_NE(device, nullptr);
+    {
+        raycast::EmbreeScenes scenes(device);
+        TerrainMeshes terrain;
+        auto meshesOf = [](const BakeWindow& w) {
+            std::set<const Mesh*> m;
+            for (const WindowObject& o : w.objects) m.insert(o.mesh);
+            return m.size();
+        };
+        const BakeWindow corner = buildWindow(*space, ChunkCoord{0, 0}, terrain);
+        raycast::WindowScene a = scenes.buildWindow(corner);
+        EXPECT_EQ(scenes.prototypeCount(), meshesOf(corner));  // 4 terrains and the cube
+        a.reset();
+        const BakeWindow far = buildWindow(*space, ChunkCoord{4, 4}, terrain);
+        raycast::WindowScene b = scenes.buildWindow(far);
+        EXPECT_EQ(scenes.prototypeCount(), meshesOf(far)) << "the first window's terrains are still held";
+        const BakeWindow middle = buildWindow(*space, ChunkCoord{3, 3}, terrain);
+        b.reset();
+        raycast::WindowScene c = scenes.buildWindow(middle);
+        EXPECT_EQ(scenes.prototypeCount(), meshesOf(middle));  // 9 terrains (4 kept from the last) and the cube
+    }
+    rtcReleaseDevice(device);
 }
