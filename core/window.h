@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include <glm/common.hpp>
@@ -62,6 +63,12 @@ struct BakeWindow {
     // (the lowest sample of every cell it touches, of every terrain there), or nothing when
     // part of the rectangle has no terrain. Conservative for "is this under the terrain".
     std::optional<double> lsTerrainMinOver(double x0, double z0, double x1, double z1) const;
+    // The meshes the window holds (what a stage's per-mesh cache keeps as the window slides).
+    std::unordered_set<const Mesh*> meshes() const {
+        std::unordered_set<const Mesh*> m;
+        for (const WindowObject& o : objects) m.insert(o.mesh);
+        return m;
+    }
 };
 
 // Terrain meshes made from heightfields, kept across windows (a bake makes each once).

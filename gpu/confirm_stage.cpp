@@ -53,7 +53,6 @@
 #include <numeric>
 #include <optional>
 #include <unordered_map>
-#include <unordered_set>
 
 #include <tbb/parallel_for.h>
 
@@ -540,11 +539,8 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     WindowTriangles tris(w);
     // The window slid: keep the edges of the meshes still loaded, drop the others (the
     // terrains of the chunks left behind), so that memory follows the window, not the world.
-    {
-        std::unordered_set<const Mesh*> loaded;
-        for (const WindowObject& o : w.objects) loaded.insert(o.mesh);
-        for (auto it = edges_.begin(); it != edges_.end();) it = loaded.count(it->first) ? std::next(it) : edges_.erase(it);
-    }
+    const std::unordered_set<const Mesh*> loaded = w.meshes();
+    for (auto it = edges_.begin(); it != edges_.end();) it = loaded.count(it->first) ? std::next(it) : edges_.erase(it);
     LightWork work{&tris, edges_};
     for (int l = 0; l < cv.lightCount; ++l) {
         if (!lights[size_t(l)]) continue;

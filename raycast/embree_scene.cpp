@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unordered_set>
 
 
 namespace shadowcull::raycast {
@@ -113,8 +112,7 @@ WindowScene EmbreeScenes::buildWindow(const BakeWindow& w) {
     WindowScene scene(all, w.hasAlphaTested ? placeAll(w, true) : all);
     // The window slid: the prototypes of meshes it no longer holds (the terrains of the
     // chunks left behind) are released, so that memory follows the window, not the world.
-    std::unordered_set<const Mesh*> loaded;
-    for (const WindowObject& o : w.objects) loaded.insert(o.mesh);
+    const std::unordered_set<const Mesh*> loaded = w.meshes();
     for (auto it = prototypes_.begin(); it != prototypes_.end();) {
         if (loaded.count(it->first)) {
             ++it;

@@ -1,7 +1,5 @@
 // Sample points for witness rays: on the group, spread by area, deterministic.
 
-#include <set>
-
 #include <gtest/gtest.h>
 
 #include <glm/geometric.hpp>
@@ -121,11 +119,7 @@ TEST(EmbreeScenes, PrototypesFollowTheWindow) {
     {
         raycast::EmbreeScenes scenes(device);
         TerrainMeshes terrain;
-        auto meshesOf = [](const BakeWindow& w) {
-            std::set<const Mesh*> m;
-            for (const WindowObject& o : w.objects) m.insert(o.mesh);
-            return m.size();
-        };
+        auto meshesOf = [](const BakeWindow& w) { return w.meshes().size(); };
         const BakeWindow corner = buildWindow(*space, ChunkCoord{0, 0}, terrain);
         raycast::WindowScene a = scenes.buildWindow(corner);
         EXPECT_EQ(scenes.prototypeCount(), meshesOf(corner));  // 4 terrains and the cube
