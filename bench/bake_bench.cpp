@@ -518,13 +518,11 @@ struct WorldRun {
     bool partial() const { return baked && bake["chunksBaked"].get<uint64_t>() < bake["chunksTotal"].get<uint64_t>(); }
     double perChunk() const { return bake["totalSeconds"].get<double>() / bake["chunksBaked"].get<double>(); }
     double cpuPerChunk() const { return bake["cpuSeconds"].get<double>() / bake["chunksBaked"].get<double>(); }
-    // Per chunk over the bake and, when it was baked again, the mean of both.
-    double meanPerChunk() const {
-        return again.is_null() ? perChunk() : (perChunk() + again["totalSeconds"].get<double>() / again["chunksBaked"].get<double>()) / 2;
-    }
-    double meanCpuPerChunk() const {
-        return again.is_null() ? cpuPerChunk() : (cpuPerChunk() + again["cpuSeconds"].get<double>() / again["chunksBaked"].get<double>()) / 2;
-    }
+    // The second bake's figures (valid when `again` is set), and the mean of both bakes.
+    double againPerChunk() const { return again["totalSeconds"].get<double>() / again["chunksBaked"].get<double>(); }
+    double againCpuPerChunk() const { return again["cpuSeconds"].get<double>() / again["chunksBaked"].get<double>(); }
+    double meanPerChunk() const { return again.is_null() ? perChunk() : (perChunk() + againPerChunk()) / 2; }
+    double meanCpuPerChunk() const { return again.is_null() ? cpuPerChunk() : (cpuPerChunk() + againCpuPerChunk()) / 2; }
     double projectedTotal() const { return perChunk() * bake["chunksTotal"].get<double>(); }
     const json* stage(const std::string& name) const {
         for (const json& s : bake["stages"])
@@ -888,7 +886,7 @@ int main(int argc, char** argv) {
             M->again.is_null()
                 ? seconds(M->perChunk()) + " s/chunk"
                 : seconds(M->meanPerChunk()) + " s/chunk, the mean of its bakes before and after L: " + seconds(M->perChunk()) +
-                      " and " + seconds(M->again["totalSeconds"].get<double>() / M->again["chunksBaked"].get<double>());
+                      " and " + seconds(M->againPerChunk());
         std::printf("| L time per chunk within %.0f%% of M's (L total ~ 9x M) | %.3f (L %s s/chunk, M %s; bits past "
                     "the reach stage per chunk: L %.0f, M %.0f)%s | %s |\n",
                     kTargetLinearity * 100, ratio, seconds(L->perChunk()).c_str(), mTimes.c_str(),
