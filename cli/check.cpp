@@ -1,4 +1,5 @@
 #include "cli/check.h"
+#include "cli/output_guard.h"
 
 #include <filesystem>
 #include <map>
@@ -109,7 +110,9 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
                 return exitCodeFor(cb.error().kind);
             }
             const std::string png = (fs::path(options.outDir) / (chunkFileName(coord) + "-light" + std::to_string(light + 1) + ".png")).string();
-            if (Status s = gpu::renderLightView(cb->window, cb->verdicts, light, options.gpuResolution, png); !s) {
+            Status s = refuseInputAsOutput(png, cb->space->inputFiles(), "--pictures");
+            if (s) s = gpu::renderLightView(cb->window, cb->verdicts, light, options.gpuResolution, png);
+            if (!s) {
                 err << "shadowcull: error: " << s.error().what() << "\n";
                 return exitCodeFor(s.error().kind);
             }

@@ -1,4 +1,6 @@
 #include "cli/diff.h"
+#include "cli/output_guard.h"
+#include "core/file_read.h"
 
 #include <tinyxml2.h>
 
@@ -234,7 +236,9 @@ uint32_t parseMask(const std::string& file, const tinyxml2::XMLElement* e) {
 
 void readChunkMasks(const std::string& file, ChunkBake& c) {
     tinyxml2::XMLDocument doc;
-    if (doc.LoadFile(file.c_str()) != tinyxml2::XML_SUCCESS) {
+    Expected<std::string> text = readRegularFile(file, "chunk file");
+    if (!text) throw InputError{text.error().what()};
+    if (doc.Parse(text->data(), text->size()) != tinyxml2::XML_SUCCESS) {
         const int line = doc.ErrorLineNum();
         throw InputError{file + (line > 0 ? ":" + std::to_string(line) : "") +
                          ": cannot read the chunk file: " + doc.ErrorStr()};
@@ -292,11 +296,9 @@ Bake readSpace(const std::string& path) {
 
 Bake readBake(const std::string& path) {
     if (fs::is_directory(path)) return readSpace(path);
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError{path + ": cannot read the file"};
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return readResults(path, ss.str());
+    Expected<std::string> text = readRegularFile(path, "results file");
+    if (!text) throw InputError{text.error().what()};
+    return readResults(path, *text);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -997,6 +999,11 @@ bool writeReport(const std::string& path, const std::string& text) {
 }  // namespace
 
 int runDiff(const DiffOptions& opt, std::ostream& out, std::ostream& err) {
+    for (const auto& [path, option] : {std::pair{opt.htmlPath, "--html"}, std::pair{opt.jsonPath, "--json"}})
+        if (Status s = refuseInputAsOutput(path, {opt.oldPath, opt.newPath}, option); !s) {
+            err << "shadowcull: error: " << s.error().what() << "\n";
+            return kExitBadInput;
+        }
     Bake a, b;
     try {
         a = readBake(opt.oldPath);

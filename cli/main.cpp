@@ -11,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli/output_guard.h"
 #include "cli/pipeline.h"
 #include "cli/check.h"
 #include "cli/diff.h"
@@ -68,25 +69,16 @@ private:
     std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), last_ = start_;
 };
 
-int runBakeCommand(const BakeOptions& opt, const std::string& resultsPath, bool quiet) {
+int runBakeCommand(const BakeOptions& opt, bool quiet) {
     ProgressBar bar(!quiet);
     Expected<BakeResult> r = runBake(opt, [&](const BakeProgress& p) { bar(p); });
     if (!r) {
+        // The message ends by saying which chunk files, if any, were updated.
         std::fprintf(stderr, "shadowcull: error: %s\n", r.error().what().c_str());
-        std::fprintf(stderr, "shadowcull: bake stopped; no chunk file was changed%s\n",
-                     r.error().kind == ErrorKind::Io ? " but those the message names as updated" : "");
         return exitCodeFor(r.error().kind);
     }
     for (const Diagnostic& d : r->diagnostics) std::fprintf(stderr, "shadowcull: warning: %s\n", d.what().c_str());
     for (const std::string& n : r->notes) std::fprintf(stderr, "shadowcull: note: %s\n", n.c_str());
-    if (!resultsPath.empty()) {
-        std::ofstream out(resultsPath, std::ios::binary);
-        out << resultsJson(*r).dump(1) << "\n";
-        if (!out) {
-            std::fprintf(stderr, "shadowcull: error: %s: cannot write the results\n", resultsPath.c_str());
-            return kExitIo;
-        }
-    }
     if (!quiet) std::fputs(formatSummary(*r, opt.write).c_str(), stdout);
     return r->diagnostics.empty() ? kExitOk : kExitSkippedInput;
 }
@@ -98,7 +90,6 @@ int main(int argc, char** argv) {
     app.require_subcommand(1);
 
     BakeOptions opt;
-    std::string resultsPath;
     bool quiet = false;
     CLI::App* bake = app.add_subcommand("bake", "Bake the <shadow> masks of a space's chunk files");
     bake->add_option("space", opt.spaceDir, "Space directory (holds space.xml and *.chunk)")->required()->check(CLI::ExistingDirectory);
@@ -106,7 +97,9 @@ int main(int argc, char** argv) {
     bake->add_option("--res", opt.resourceRoot, "Resource root (default: <resourceRoot> of space.xml, else the space)");
     bake->add_option("--chunk", opt.chunkNames, "Bake only these chunks (XXXXZZZZo or XXXXZZZZo.chunk); repeatable");
     bake->add_option("--threads", opt.threads, "Worker threads (default: all cores)")->check(CLI::NonNegativeNumber);
-    bake->add_option("--results", resultsPath, "Write per-bit verdicts and evidence as JSON");
+    bake->add_option("--results", opt.resultsPath, "Write per-bit verdicts and evidence as JSON");
+    bake->add_flag("--force-write", opt.forceWrite,
+                   "Also replace chunk files that are read-only or whose owner and group cannot be kept");
     bake->add_option("--samples", opt.raycast.areaSamples, "Area samples per group and light for witness rays")
         ->check(CLI::Range(1, 1 << 20));
     std::vector<std::string> stageNames{"raycast", "geometry", "gpu"};
@@ -190,7 +183,7 @@ int main(int argc, char** argv) {
     opt.useGeometry = std::find(stageNames.begin(), stageNames.end(), "geometry") != stageNames.end();
     opt.useGpu = std::find(stageNames.begin(), stageNames.end(), "gpu") != stageNames.end();
     opt.gpuBaseline = method == "gpu";
-    if (*bake) return runBakeCommand(opt, resultsPath, quiet);
+    if (*bake) return runBakeCommand(opt, quiet);
     if (*diff) return runDiff(diffOpt, std::cout, std::cerr);
     if (*check) return runCheck(checkOpt, std::cout, std::cerr);
     if (*render) {
@@ -206,7 +199,9 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "shadowcull: error: %s\n", cb.error().what().c_str());
             return exitCodeFor(cb.error().kind);
         }
-        if (Status s = gpu::renderLightView(cb->window, cb->verdicts, renderLight - 1, renderOpt.gpuResolution, renderOut); !s) {
+        Status s = refuseInputAsOutput(renderOut, cb->space->inputFiles(), "--out");
+        if (s) s = gpu::renderLightView(cb->window, cb->verdicts, renderLight - 1, renderOpt.gpuResolution, renderOut);
+        if (!s) {
             std::fprintf(stderr, "shadowcull: error: %s\n", s.error().what().c_str());
             return exitCodeFor(s.error().kind);
         }

@@ -1,7 +1,13 @@
 #include "cli/pipeline.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 
 #include <glm/geometric.hpp>
 #include <filesystem>
@@ -13,8 +19,12 @@
 
 #include <tbb/global_control.h>
 
+#include "cli/output_guard.h"
+#include "cli/report.h"
 #include "cli/resume.h"
 #include "core/chunk_writer.h"
+#include "core/file_read.h"
+#include "core/hash.h"
 #include "core/format.h"
 #include "core/window.h"
 #include "gpu/baseline.h"
@@ -31,6 +41,7 @@ int exitCodeFor(ErrorKind kind) {
         case ErrorKind::MissingResource: return kExitBadInput;
         case ErrorKind::Io: return kExitIo;
         case ErrorKind::Internal: return kExitInternal;
+        case ErrorKind::Busy: return kExitBusy;
     }
     return kExitInternal;
 }
@@ -70,14 +81,6 @@ std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdic
 }
 
 namespace {
-
-std::string readFile(const std::string& path, bool& ok) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    ok = bool(in) || in.eof();
-    return ss.str();
-}
 
 // Targets for a dense witness search around the pixels where the GPU confirmation saw
 // samples pass: each pixel's ray and four rays a third of its footprint to the sides.
@@ -195,7 +198,87 @@ Expected<ChunkBake> bakeChunk(const BakeOptions& opt, ChunkCoord chunk) {
     return out;
 }
 
+namespace {
+
+// The output directory's lock (docs/cli.md): one writing bake per directory at a time, so
+// that a second bake can neither remove the first one's staged files nor interleave its
+// renames with them. flock() locks die with the process, so a killed bake never leaves a
+// stale lock behind; the file itself stays (removing it would race with the next bake).
+class OutputLock {
+public:
+    ~OutputLock() {
+        if (fd_ >= 0) ::close(fd_);  // releases the lock
+    }
+    Status acquire(const std::string& dir) {
+        const std::string path = (fs::path(dir) / ".shadowcull-bake.lock").string();
+        fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        if (fd_ < 0) return makeError(ErrorKind::Io, path, 0, std::string("cannot create the bake lock: ") + std::strerror(errno));
+        if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+            char pid[32] = {};
+            const ssize_t n = ::pread(fd_, pid, sizeof pid - 1, 0);
+            std::string holder = n > 0 ? std::string(pid, size_t(n)) : "";
+            holder.erase(holder.find_last_not_of(" \n") + 1);
+            return makeError(ErrorKind::Busy, path, 0,
+                             "another shadowcull bake is writing " + dir +
+                                 (holder.empty() ? "" : " (process " + holder + ")") + "; wait for it to finish");
+        }
+        const std::string me = std::to_string(::getpid()) + "\n";
+        if (::ftruncate(fd_, 0) == 0 && ::pwrite(fd_, me.data(), me.size(), 0) < 0) {
+            // The pid is for messages only.
+        }
+        return Status::ok();
+    }
+
+private:
+    int fd_ = -1;
+};
+
+// A chunk file baked and staged, waiting for its rename.
+struct StagedChunk {
+    std::string name;    // chunk file name, for messages
+    std::string source;  // the chunk file the verdicts were computed from
+    uint64_t sourceHash = 0;
+    std::string temp, target;
+};
+
+// Why `source` must not be replaced now: it no longer holds the bytes the bake read (an
+// edit made while the bake ran). Empty when it still does.
+std::string changedSince(const std::string& source, uint64_t hash) {
+    Expected<std::string> now = readRegularFile(source, "chunk file", ErrorKind::Io);
+    if (!now) return "cannot be read again (" + now.error().message + ")";
+    if (Hasher().str(*now).value() != hash)
+        return "changed on disk while the bake ran (someone's edit?); not written, so the edit is kept: bake it again";
+    return {};
+}
+
+// "; no chunk file was changed" or "; updated (each file complete): a, b".
+std::string writtenNote(const std::vector<std::string>& committed) {
+    if (committed.empty()) return "; no chunk file was changed";
+    std::string s = "; " + std::to_string(committed.size()) + " chunk file(s) were updated before it, each completely:";
+    for (const std::string& c : committed) s += " " + c;
+    return s;
+}
+
+// runBake without the note on what was written; `committed` lists the chunk files renamed
+// so far, whatever happens after.
+Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& progress, std::vector<std::string>& committed);
+
+}  // namespace
+
 Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
+    std::vector<std::string> committed;
+    Expected<BakeResult> r = runBakeWriting(opt, progress, committed);
+    if (!r) {
+        Error e = r.error();
+        e.message += writtenNote(committed);
+        return e;
+    }
+    return r;
+}
+
+namespace {
+
+Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& progress, std::vector<std::string>& committed) {
     const auto t0 = std::chrono::steady_clock::now();
     auto since = [](auto t) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count(); };
     std::unique_ptr<tbb::global_control> threadLimit;
@@ -231,116 +314,182 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
     }
     result.loadSeconds = since(t0);
 
-    // 3. Bake every chunk; stage its new text in a temporary file beside the target.
-    // Cheap to expensive; each stage skips what an earlier one decided. Witness rays come
-    // before shadow volumes: most bits of a real world are 1s, found after a few rays.
+    // 3. Outputs: never an input, and every one writable before any work is done.
+    const std::vector<std::string> inputs = space.inputFiles();
+    if (Status s = refuseInputAsOutput(opt.resultsPath, inputs, "--results"); !s) return s.error();
+    if (!opt.resultsPath.empty()) {
+        Expected<std::string> probe = stageFile(opt.resultsPath, "");
+        if (!probe) return probe.error();
+        fs::remove(*probe);
+    }
+    const std::string outDir = opt.outDir.empty() ? opt.spaceDir : opt.outDir;
+    OutputLock lock;
+    if (opt.write) {
+        if (!opt.outDir.empty()) {
+            std::error_code ec;
+            fs::create_directories(opt.outDir, ec);
+            if (ec) return makeError(ErrorKind::Io, opt.outDir, 0, "cannot create output directory: " + ec.message());
+        }
+        if (Status s = lock.acquire(outDir); !s) return s.error();
+        // Temporaries of a bake that was killed are never chunk files; clear them away
+        // (only now: the lock guarantees they are no running bake's).
+        removeStaleTempFiles(outDir);
+    }
+    // Where each chunk's bytes go: in place (through a symlink to its target), or a copy
+    // under --out. A chunk file that may not be replaced is not baked at all.
+    auto targetOf = [&](const ChunkFile& cf) {
+        return writeTargetFor(opt.outDir.empty() ? cf.path : (fs::path(opt.outDir) / fs::path(cf.path).filename()).string());
+    };
+    auto refuse = [&](const ChunkFile& cf, const std::string& why) { result.diagnostics.push_back({cf.path, 0, why}); };
+    if (opt.write) {
+        std::vector<ChunkCoord> writable;
+        for (ChunkCoord c : targets) {
+            const ChunkFile& cf = space.chunks.at(c);
+            const std::string target = targetOf(cf);
+            std::error_code ec;
+            const bool inPlace = fs::equivalent(target, cf.path, ec);
+            if (!inPlace)
+                if (Status s = refuseInputAsOutput(target, inputs, "--out"); !s) return s.error();
+            if (std::string why = opt.forceWrite ? "" : replaceRefusal(target); !why.empty()) {
+                refuse(cf, (inPlace ? "the chunk file is " : "the output " + target + " is ") + why +
+                               "; not baked (--force-write replaces it anyway)");
+                continue;
+            }
+            writable.push_back(c);
+        }
+        targets = std::move(writable);
+    }
+
+    // 4. Bake every chunk; stage its new text in a temporary file beside the target.
     StageRunner runner(opt);
     result.notes = runner.notes();
     if (!runner.status()) return runner.status().error();
     result.stages = runner.timings();
     TerrainMeshes terrainMeshes;
-    struct Staged {
-        std::string temp, target;
-    };
-    std::vector<Staged> staged;
+    std::vector<StagedChunk> staged;
     auto discardStaged = [&] {
-        for (const Staged& s : staged) fs::remove(s.temp);
+        for (const StagedChunk& s : staged) fs::remove(s.temp);
     };
-    if (opt.write && !opt.outDir.empty()) {
-        std::error_code ec;
-        fs::create_directories(opt.outDir, ec);
-        if (ec) return makeError(ErrorKind::Io, opt.outDir, 0, "cannot create output directory: " + ec.message());
-    }
-    // Temporaries of a bake that was killed are never chunk files; clear them away.
-    const std::string outDir = opt.outDir.empty() ? opt.spaceDir : opt.outDir;
-    if (opt.write) removeStaleTempFiles(outDir);
     const bool resume = opt.resume && opt.write;
     ResumeState state;
     const std::string statePath = ResumeState::pathIn(outDir);
     if (resume) state.load(statePath);
+    // Renames one staged chunk unless its source changed since it was read (the check and
+    // the rename are microseconds apart; the lock keeps other bakes out of that window).
+    auto commit = [&](const StagedChunk& s) -> Status {
+        if (std::string why = changedSince(s.source, s.sourceHash); !why.empty()) {
+            fs::remove(s.temp);
+            result.diagnostics.push_back({s.source, 0, why});
+            return Status::ok();
+        }
+        if (Status st = commitStagedFile(s.temp, s.target); !st) return st;
+        committed.push_back(s.name);
+        ++result.chunksWritten;
+        return Status::ok();
+    };
+    auto stopWith = [&](Error e) {
+        discardStaged();
+        if (resume) (void)state.save(statePath);  // what was committed stays recorded
+        return e;
+    };
     std::unordered_map<const void*, uint64_t> meshHashes;
     auto lastSave = std::chrono::steady_clock::now();
+    size_t done = 0;
     for (size_t k = 0; k < targets.size(); ++k) {
         const ChunkFile& cf = space.chunks.at(targets[k]);
-        const std::string target =
-            opt.outDir.empty() ? cf.path : (fs::path(opt.outDir) / fs::path(cf.path).filename()).string();
+        const std::string target = targetOf(cf);
         const std::string chunkName = chunkFileName(targets[k]);
         uint64_t inputHash = 0;
         if (resume) {
             inputHash = windowInputHash(space, targets[k], opt, meshHashes);
-            bool ok = false;
-            const std::string current = readFile(target, ok);
-            if (ok && state.upToDate(chunkName, inputHash, current)) {
+            Expected<std::string> current = readRegularFile(target, "chunk file", ErrorKind::Io);
+            if (current && state.upToDate(chunkName, inputHash, *current)) {
                 ++result.chunksResumed;
-                if (progress) progress({k + 1, targets.size(), size_t(result.chunksResumed)});
+                if (progress) progress({++done, targets.size(), size_t(result.chunksResumed)});
                 continue;
             }
         }
         BakeWindow window = buildWindow(space, targets[k], terrainMeshes);
         ChunkVerdicts cv = makeChunkVerdicts(space, window);
         if (Status status = runner.bake(window, cv, result.stages); !status) {
-            discardStaged();
             Error e = status.error();
             if (e.file.empty()) e.file = cf.path;
-            return e;
+            return stopWith(e);
         }
         cv.simulated = simulatedEffects(window, cv);
         if (opt.write) {
             const auto tw = std::chrono::steady_clock::now();
-            bool ok = false;
-            const std::string text = readFile(cf.path, ok);
-            if (!ok) {
-                discardStaged();
-                return makeError(ErrorKind::Io, cf.path, 0, "cannot read the chunk file again for writing");
-            }
-            Expected<std::string> rewritten = rewriteChunkShadows(text, cf.path, shadowWrites(cv));
-            if (!rewritten) {
-                discardStaged();
-                return rewritten.error();
-            }
-            // Complete and synced before any target is replaced.
-            Expected<std::string> temp = stageFile(target, *rewritten);
-            if (!temp) {
-                discardStaged();
-                return temp.error();
-            }
-            if (resume) {
-                // Long-bake mode: commit now, then record it (a kill between the two only
-                // costs baking this chunk again).
-                if (Status s = commitStagedFile(*temp, target); !s) return s.error();
-                ++result.chunksWritten;
-                state.record(chunkName, inputHash, *rewritten);
-                if (std::chrono::steady_clock::now() - lastSave > std::chrono::seconds(2)) {
-                    if (Status s = state.save(statePath); !s) return s.error();
-                    lastSave = std::chrono::steady_clock::now();
-                }
+            // The text to rewrite is the text the objects were read from, or nothing.
+            Expected<std::string> text = readRegularFile(cf.path, "chunk file", ErrorKind::Io);
+            if (!text) return stopWith(text.error());
+            if (Hasher().str(*text).value() != cf.contentHash) {
+                refuse(cf, "changed on disk while the bake ran (someone's edit?); not written, so the edit is kept: bake it again");
             } else {
-                staged.push_back({*temp, target});
+                Expected<std::string> rewritten = rewriteChunkShadows(*text, cf.path, shadowWrites(cv));
+                if (!rewritten) return stopWith(rewritten.error());
+                // Complete and synced before any target is replaced.
+                Expected<std::string> temp = stageFile(target, *rewritten, !opt.forceWrite);
+                if (!temp) return stopWith(temp.error());
+                StagedChunk sc{chunkName, cf.path, cf.contentHash, *temp, target};
+                if (resume) {
+                    // Long-bake mode: commit now, then record it (a kill between the two only
+                    // costs baking this chunk again).
+                    const int before = result.chunksWritten;
+                    if (Status s = commit(sc); !s) return stopWith(s.error());
+                    if (result.chunksWritten > before) state.record(chunkName, inputHash, *rewritten);
+                    if (std::chrono::steady_clock::now() - lastSave > std::chrono::seconds(2)) {
+                        if (Status s = state.save(statePath); !s) return stopWith(s.error());
+                        lastSave = std::chrono::steady_clock::now();
+                    }
+                } else {
+                    staged.push_back(std::move(sc));
+                }
             }
             result.writeSeconds += since(tw);
         }
         result.chunks.push_back(std::move(cv));
-        if (progress) progress({k + 1, targets.size(), size_t(result.chunksResumed)});
+        if (progress) progress({++done, targets.size(), size_t(result.chunksResumed)});
     }
 
-    // 4. Commit: one rename per file. Each rename is atomic, so an interruption here leaves
+    // 5. The results file, staged before any chunk file is renamed: a results file that
+    // cannot be written stops the bake with every chunk file as it was.
+    std::string resultsTemp;
+    const size_t warningsInResults = result.diagnostics.size();
+    if (!opt.resultsPath.empty()) {
+        Expected<std::string> t = stageFile(opt.resultsPath, resultsJson(result).dump(1) + "\n");
+        if (!t) return stopWith(t.error());
+        resultsTemp = *t;
+    }
+
+    // 6. Commit: one rename per file. Each rename is atomic, so an interruption here leaves
     // every chunk file either as it was or complete.
     const auto tc = std::chrono::steady_clock::now();
     for (size_t k = 0; k < staged.size(); ++k) {
-        if (Status s = commitStagedFile(staged[k].temp, staged[k].target); !s) {
-            for (size_t j = k + 1; j < staged.size(); ++j) fs::remove(staged[j].temp);
-            Error e = s.error();
-            e.message += " (" + std::to_string(k) + " of " + std::to_string(staged.size()) +
-                         " chunk files were updated, each completely)";
-            return e;
+        if (Status s = commit(staged[k]); !s) {
+            staged.erase(staged.begin(), staged.begin() + std::ptrdiff_t(k + 1));
+            if (!resultsTemp.empty()) fs::remove(resultsTemp);
+            return stopWith(s.error());
         }
-        ++result.chunksWritten;
     }
+    staged.clear();
     if (resume)
-        if (Status s = state.save(statePath); !s) return s.error();
+        if (Status s = state.save(statePath); !s) return stopWith(s.error());
+    if (!resultsTemp.empty()) {
+        // Refused chunks (edited during the commit) were added to the diagnostics after the
+        // results were staged: stage them again so the file lists every warning.
+        if (result.diagnostics.size() != warningsInResults) {
+            fs::remove(resultsTemp);
+            Expected<std::string> t = stageFile(opt.resultsPath, resultsJson(result).dump(1) + "\n");
+            if (!t) return stopWith(t.error());
+            resultsTemp = *t;
+        }
+        if (Status s = commitStagedFile(resultsTemp, opt.resultsPath); !s) return stopWith(s.error());
+    }
     result.writeSeconds += since(tc);
     result.totalSeconds = since(t0);
     return result;
 }
+
+}  // namespace
 
 }  // namespace shadowcull::cli

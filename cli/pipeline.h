@@ -25,6 +25,7 @@ enum ExitCode : int {
     kExitBadInput = 3,      // stopped before writing anything
     kExitIo = 4,            // writing failed; files are either original or complete
     kExitInternal = 5,      // a library failed; nothing written
+    kExitBusy = 6,          // another bake holds the output directory's lock; nothing done
 };
 
 int exitCodeFor(ErrorKind kind);
@@ -46,6 +47,12 @@ struct BakeOptions {
     int gpuResolution = 1024;  // pixels per side of each light view
     bool gpuTerrain = false;   // also send terrain groups to the GPU confirmation
     bool write = true;        // false: compute only (tests, reports)
+    // Per-bit verdicts as JSON (bake --results), written with the chunk files: staged
+    // before any of them is renamed, renamed after them.
+    std::string resultsPath;
+    // Replace chunk files that are read-only or whose owner cannot be kept (otherwise such
+    // a chunk is not baked, with a warning).
+    bool forceWrite = false;
     // Long bakes: commit each chunk as soon as it is baked, record what was written, and
     // skip chunks whose inputs and file are unchanged since (cli/resume.h).
     bool resume = false;
@@ -119,8 +126,10 @@ struct BakeProgress {
 };
 using Progress = std::function<void(const BakeProgress&)>;
 
-// Runs the whole bake. On error nothing has been written (or, for an I/O failure while
-// committing, every chunk file is either as it was or complete).
+// Runs the whole bake. Every chunk file is either as it was or complete. On error the
+// message ends by naming the chunk files updated before it ("no chunk file was changed",
+// or each one: possible only with --resume or during the final renames). A chunk whose file
+// is read-only or changed during the bake is not written and gets a warning.
 Expected<BakeResult> runBake(const BakeOptions& options, const Progress& progress = {});
 
 // Effects the window calls for, as the bake simulated them (for the summary and JSON).

@@ -1,5 +1,7 @@
 #include "cli/resume.h"
 
+#include "core/file_read.h"
+
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -8,6 +10,7 @@
 
 #include "cli/pipeline.h"
 #include "core/chunk_writer.h"
+#include "core/file_read.h"
 #include "core/hash.h"
 
 namespace fs = std::filesystem;
@@ -77,10 +80,10 @@ std::string ResumeState::pathIn(const std::string& dir) { return (fs::path(dir) 
 
 void ResumeState::load(const std::string& path) {
     entries_.clear();
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return;
+    Expected<std::string> text = readRegularFile(path, "bake state");  // never a FIFO to wait on
+    if (!text) return;
     try {
-        nlohmann::json j = nlohmann::json::parse(in);
+        nlohmann::json j = nlohmann::json::parse(*text);
         for (const auto& [chunk, e] : j.at("chunks").items())
             entries_[chunk] = Entry{std::stoull(e.at("input").get<std::string>(), nullptr, 16),
                                     std::stoull(e.at("output").get<std::string>(), nullptr, 16)};

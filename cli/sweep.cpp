@@ -1,4 +1,5 @@
 #include "cli/sweep.h"
+#include "cli/output_guard.h"
 
 #include <algorithm>
 #include <chrono>
@@ -86,6 +87,13 @@ Expected<std::vector<SweepRow>> runSweep(const SweepOptions& options, const std:
     refOpt.gpuResolution = 2048;
     refOpt.raycast.areaSamples = options.referenceSamples;
     refOpt.raycast.maxFeatureSamples = 4 * options.referenceSamples;
+    // Outputs are checked before the hours of baking, against every file the space reads.
+    {
+        Expected<Space> space = loadSpace(options.spaceDir, options.resourceRoot);
+        if (!space) return space.error();
+        for (const auto& [path, option] : {std::pair{options.csvPath, "--csv"}, std::pair{options.svgPath, "--svg"}})
+            if (Status s = refuseInputAsOutput(path, space->inputFiles(), option); !s) return s.error();
+    }
     Expected<BakeResult> reference = runBake(refOpt);
     if (!reference) return reference.error();
     const auto ref = index(*reference);

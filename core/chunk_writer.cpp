@@ -12,7 +12,10 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <vector>
 
 namespace shadowcull {
 
@@ -289,6 +292,12 @@ Status ioError(const std::string& path, const std::string& what) {
     return makeError(ErrorKind::Io, path, 0, what + ": " + std::strerror(errno));
 }
 
+std::string octalMode(mode_t mode) {
+    char buf[8];
+    std::snprintf(buf, sizeof buf, "%04o", unsigned(mode & 07777));
+    return buf;
+}
+
 std::string parentDir(const std::string& path) {
     size_t slash = path.rfind('/');
     if (slash == std::string::npos) return ".";
@@ -345,7 +354,32 @@ std::string tempPathFor(const std::string& path) {
     return path.substr(0, nameAt) + "." + path.substr(nameAt) + ".shadowcull-tmp";
 }
 
-Expected<std::string> stageFile(const std::string& path, const std::string& contents) {
+std::string writeTargetFor(const std::string& path) {
+    std::error_code ec;
+    if (!std::filesystem::is_symlink(path, ec)) return path;
+    const std::filesystem::path target = std::filesystem::weakly_canonical(path, ec);
+    return ec ? path : target.string();
+}
+
+std::string replaceRefusal(const std::string& path) {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) return {};
+    if ((st.st_mode & 0222) == 0) return "read-only (mode " + octalMode(st.st_mode) + ")";
+    if (::access(path.c_str(), W_OK) != 0) return "not writable by this user";
+    if (::geteuid() != 0) {
+        // Only root may give a file away; a member of the file's group may keep the group.
+        if (st.st_uid != ::geteuid()) return "owned by another user (uid " + std::to_string(st.st_uid) + "), who would lose it";
+        if (st.st_gid != ::getegid()) {
+            std::vector<gid_t> groups(size_t(std::max(0, ::getgroups(0, nullptr))));
+            const int n = ::getgroups(int(groups.size()), groups.data());
+            if (std::find(groups.begin(), groups.begin() + std::max(0, n), st.st_gid) == groups.begin() + std::max(0, n))
+                return "of group " + std::to_string(st.st_gid) + ", which this user cannot keep";
+        }
+    }
+    return {};
+}
+
+Expected<std::string> stageFile(const std::string& path, const std::string& contents, bool keepOwner) {
     const std::string temp = tempPathFor(path);
     // Keep the permissions users gave the file; a new file gets the umask's default.
     struct stat st {};
@@ -359,6 +393,10 @@ Expected<std::string> stageFile(const std::string& path, const std::string& cont
         ::unlink(temp.c_str());
         return s.error();
     };
+    if (existed && (st.st_uid != ::geteuid() || st.st_gid != ::getegid()) && ::fchown(fd, st.st_uid, st.st_gid) != 0 &&
+        keepOwner)
+        return fail("cannot keep the owner and group of the file on " + temp);
+    // After fchown, which may clear set-id bits.
     if (existed && ::fchmod(fd, st.st_mode & 07777) != 0) return fail("cannot set permissions of " + temp);
     for (size_t done = 0; done < contents.size();) {
         ssize_t n = ::write(fd, contents.data() + done, contents.size() - done);

@@ -46,10 +46,24 @@ Status writeFileAtomic(const std::string& path, const std::string& contents);
 
 // The two halves of writeFileAtomic, for a bake that stages every file before replacing
 // any: stageFile writes `contents` completely to tempPathFor(path) (with `path`'s
-// permission bits, synced) and returns that name; commitStagedFile renames it over `path`
-// and syncs the directory (on failure the staged file is removed, `path` untouched).
-Expected<std::string> stageFile(const std::string& path, const std::string& contents);
+// permission bits and, where it differs from this process's, its owner and group; synced)
+// and returns that name; commitStagedFile renames it over `path` and syncs the directory
+// (on failure the staged file is removed, `path` untouched). With `keepOwner`, an owner or
+// group that cannot be kept is an Io error; without, the replacement is this user's.
+Expected<std::string> stageFile(const std::string& path, const std::string& contents, bool keepOwner = true);
 Status commitStagedFile(const std::string& staged, const std::string& path);
+
+// Where writing `path` must go: a symbolic link (or a chain of them) is followed to the
+// file it names, so that the link stays a link and its target gets the new bytes (staged
+// beside the target and renamed over it). Any other path is returned as it is.
+std::string writeTargetFor(const std::string& path);
+
+// Why an existing file must not be replaced unless the user asks for it (bake
+// --force-write): it is read-only (no write permission bit at all, as version control
+// leaves files that are not checked out, or this user may not write it), or its owner or
+// group could not be kept on the replacement. Empty when it may be replaced or does not
+// exist.
+std::string replaceRefusal(const std::string& path);
 
 // The temporary name used by writeFileAtomic: ".<name>.shadowcull-tmp" beside `path`.
 std::string tempPathFor(const std::string& path);

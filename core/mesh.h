@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,11 @@ struct PrimitiveGroup {
     bool alphaTested = false;  // light passes it (glTF alphaMode MASK/BLEND, MTL map_d, or .model override)
     bool doubleSided = false;  // two-sided receiver (glTF doubleSided or .model override); alphaTested implies two-sided
     bool twoSided() const { return alphaTested || doubleSided; }
+    // Set when the file cannot say whether the group is alpha-tested (an OBJ `usemtl`
+    // naming a material no library defines): the group must not be baked as opaque on a
+    // guess, so loading the model fails with this error unless a .model override states
+    // `alphaTest` for the group.
+    std::optional<Error> alphaUnknown;
 };
 
 // Mesh in model-local coordinates (metres, Y up, right-handed). Triangles are
@@ -29,6 +35,7 @@ struct Mesh {
     std::vector<std::array<uint32_t, 3>> triangles;  // indices into positions
     std::vector<uint32_t> triangleGroup;             // per triangle: index into groups
     std::vector<PrimitiveGroup> groups;              // every group, also those without triangles
+    std::vector<std::string> sourceFiles;            // every file read to build it (.model, mesh, MTL, buffers)
 };
 
 // Loads a Wavefront OBJ file (+ the MTL libraries it names, relative to the OBJ file).

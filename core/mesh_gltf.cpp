@@ -18,6 +18,9 @@
 #include <glm/mat4x4.hpp>
 #include <nlohmann/json.hpp>
 
+#include "core/file_read.h"
+#include "core/format.h"
+#include "core/limits.h"
 #include "core/mesh.h"
 
 namespace fs = std::filesystem;
@@ -38,13 +41,11 @@ struct GltfFailure {
     throw GltfFailure{kind, line, std::move(message)};
 }
 
-bool readFile(const fs::path& path, std::vector<uint8_t>& out) {
-    std::error_code ec;
-    if (!fs::is_regular_file(path, ec)) return false;  // ifstream would "open" a directory
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return false;
-    out.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-    return !in.bad();
+// A regular file only (core/file_read.h: a FIFO or directory is refused, never waited on).
+void readFile(const fs::path& path, const std::string& what, std::vector<uint8_t>& out) {
+    Expected<std::string> text = readRegularFile(path.string(), what);
+    if (!text) fail(what + " '" + path.string() + "': " + text.error().message, text.error().kind);
+    out.assign(text->begin(), text->end());
 }
 
 // Little-endian reads that do not depend on host byte order or alignment.
@@ -209,7 +210,7 @@ private:
 
     void readContainer() {
         std::vector<uint8_t> bytes;
-        if (!readFile(path_, bytes)) fail("cannot open glTF file", ErrorKind::MissingResource);
+        readFile(path_, "glTF file", bytes);
         std::string text;
         if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
             isGlb_ = true;
@@ -285,8 +286,8 @@ private:
                 fail(where + ".uri: remote buffer '" + uri + "' is not supported");
             } else {
                 const fs::path file = fs::path(path_).parent_path() / percentDecode(uri);
-                if (!readFile(file, data))
-                    fail(where + ": cannot open buffer file '" + file.string() + "'", ErrorKind::MissingResource);
+                readFile(file, where + ": buffer file", data);
+                mesh_.sourceFiles.push_back(file.string());
             }
         }
         if (data.size() < byteLength)
@@ -452,8 +453,12 @@ private:
             if (base + lp.positions.size() > UINT32_MAX) fail("too many vertices for 32-bit indices");
             for (const glm::dvec3& q : lp.positions) {
                 const glm::dvec3 w(world * glm::dvec4(q, 1.0));
-                if (!std::isfinite(w.x) || !std::isfinite(w.y) || !std::isfinite(w.z))
-                    fail(referrer + ": its transform makes positions overflow");  // e.g. scale 1e300
+                // e.g. a node scale of 1e20; the NaN test also catches inf.
+                const double m = limits::kMaxLocalCoordinate;
+                if (!(std::abs(w.x) <= m && std::abs(w.y) <= m && std::abs(w.z) <= m))
+                    fail(referrer + ": placed by the node transforms, a position reaches " +
+                         formatNumber(std::max({std::abs(w.x), std::abs(w.y), std::abs(w.z)})) +
+                         " m, beyond the accepted " + formatNumber(m) + " m (docs/format.md, accepted ranges)");
                 mesh_.positions.push_back(w);
             }
             for (const auto& t : lp.triangles) {
@@ -535,7 +540,9 @@ private:
 
 Expected<Mesh> loadGltf(const std::string& path) {
     try {
-        return GltfLoader(path).load();
+        Mesh mesh = GltfLoader(path).load();
+        mesh.sourceFiles.insert(mesh.sourceFiles.begin(), path);
+        return std::move(mesh);
     } catch (const GltfFailure& f) {
         return makeError(f.kind, path, f.line, f.message);
     } catch (const json::exception& e) {

@@ -1,7 +1,9 @@
 // Wavefront OBJ + MTL loader. Written by hand rather than with a library so that group
 // numbering follows the scene-format spec exactly and every error names file and line.
 
+#include <algorithm>
 #include <charconv>
+#include <limits>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -13,6 +15,9 @@
 #include <string_view>
 #include <system_error>
 
+#include "core/file_read.h"
+#include "core/format.h"
+#include "core/limits.h"
 #include "core/mesh.h"
 
 namespace fs = std::filesystem;
@@ -29,15 +34,12 @@ struct ObjFailure {
 
 [[noreturn]] void fail(int line, std::string message) { throw ObjFailure{line, std::move(message)}; }
 
-bool readFile(const fs::path& path, std::string& out) {
-    std::error_code ec;
-    if (!fs::is_regular_file(path, ec)) return false;  // ifstream would "open" a directory
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return false;
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    out = ss.str();
-    return !in.bad();
+// Text files only: a NUL byte means binary data (or a corrupt file), which would otherwise
+// read as a file of unknown statements, that is as an empty mesh or material library.
+void rejectBinary(const std::string& text) {
+    if (size_t nul = text.find('\0'); nul != std::string::npos)
+        fail(1 + int(std::count(text.begin(), text.begin() + std::ptrdiff_t(nul), '\n')),
+             "binary data (a NUL byte): not a text file");
 }
 
 // Yields logical lines: physical lines ending in a backslash are joined with the next
@@ -102,7 +104,7 @@ std::string quoted(std::string_view s) { return "'" + std::string(s) + "'"; }
 
 // from_chars is locale-independent and tells exactly where a number stops, so "1.5e" or
 // "1.5x" (a truncated or corrupt file) is caught instead of silently read as 1.5.
-double parseNumber(std::string_view tok, int line) {
+double parseNumber(std::string_view tok, int line, double maxAbs = std::numeric_limits<double>::max()) {
     std::string_view s = tok;
     if (s.size() > 1 && s[0] == '+' && s[1] != '-') s.remove_prefix(1);  // from_chars rejects '+'
     double v = 0;
@@ -110,6 +112,9 @@ double parseNumber(std::string_view tok, int line) {
     if (ec == std::errc::invalid_argument || ptr != s.data() + s.size()) fail(line, "malformed number " + quoted(tok));
     if (ec == std::errc::result_out_of_range) v = std::strtod(std::string(s).c_str(), nullptr);  // underflow is fine
     if (!std::isfinite(v)) fail(line, "non-finite number " + quoted(tok));
+    if (std::abs(v) > maxAbs)
+        fail(line, "number " + quoted(tok) + " is outside the accepted range [-" + formatNumber(maxAbs) + ", " +
+                       formatNumber(maxAbs) + "] (docs/format.md, accepted ranges)");
     return v;
 }
 
@@ -127,26 +132,48 @@ uint32_t resolveIndex(std::string_view tok, std::string_view ref, size_t defined
     return uint32_t(idx);
 }
 
-// Names of MTL materials that have a `map_d` (the spec's only alpha-test signal; a `d` < 1
-// alone means blending and is deliberately ignored). Unreadable libraries are skipped: a
-// missing MTL only loses alpha-testing, which the .model override can restore.
-void readMtl(const fs::path& path, std::set<std::string>& alphaTested) {
-    std::string text;
-    if (!readFile(path, text)) return;
-    LineReader reader(text);
-    std::string stmt, material;
-    bool inMaterial = false;
-    int line = 0;
-    std::vector<std::string_view> tok;
-    while (reader.next(stmt, line)) {
-        splitTokens(stmt, tok);
-        if (tok.empty()) continue;
-        if (tok[0] == "newmtl") {
-            material = restAfter(stmt, tok[0]);
-            inMaterial = true;
-        } else if (tok[0] == "map_d" && inMaterial) {
-            alphaTested.insert(material);
+// A material library as far as the bake needs it: the materials it defines, and those with
+// a `map_d` (the spec's only alpha-test signal; a `d` < 1 alone means blending and is
+// deliberately ignored).
+struct Materials {
+    std::set<std::string> defined, alphaTested;
+};
+
+// Reads one MTL file. A library that is missing, unreadable or broken is an error, never
+// skipped: without it alpha-tested foliage would bake as opaque and cull shadows the engine
+// draws. Errors thrown here carry the MTL's own line; loadObj names the MTL file.
+struct MtlFailure {
+    std::string file;
+    int line;
+    std::string message;
+};
+
+void readMtl(const fs::path& path, int mtllibLine, Materials& out) {
+    Expected<std::string> text = readRegularFile(path.string(), "material library");
+    if (!text) fail(mtllibLine, "mtllib " + quoted(std::string_view(path.filename().string())) + ": " + text.error().message);
+    try {
+        rejectBinary(*text);
+        LineReader reader(*text);
+        std::string stmt, material;
+        bool inMaterial = false;
+        int line = 0;
+        std::vector<std::string_view> tok;
+        while (reader.next(stmt, line)) {
+            splitTokens(stmt, tok);
+            if (tok.empty()) continue;
+            if (tok[0] == "newmtl") {
+                material = restAfter(stmt, tok[0]);
+                if (material.empty()) fail(line, "'newmtl' needs a material name");
+                out.defined.insert(material);
+                inMaterial = true;
+            } else if (tok[0] == "map_d") {
+                if (!inMaterial) fail(line, "'map_d' before any 'newmtl'");
+                if (tok.size() < 2) fail(line, "'map_d' needs a texture file");
+                out.alphaTested.insert(material);
+            }
         }
+    } catch (const ObjFailure& f) {
+        throw MtlFailure{path.string(), f.line, f.message};
     }
 }
 
@@ -164,7 +191,8 @@ Mesh parseObj(const fs::path& path, const std::string& text) {
         if (added) mesh.groups.push_back(PrimitiveGroup{name});
         return it->second;
     };
-    std::vector<fs::path> mtlFiles;
+    std::vector<std::pair<fs::path, int>> mtlFiles;  // library, line of its `mtllib`
+    std::map<std::string, int> usedAt;                // material -> line of its first `usemtl`
     size_t texcoords = 0, normals = 0;
     bool haveGroup = false;
     uint32_t group = 0;
@@ -182,7 +210,8 @@ Mesh parseObj(const fs::path& path, const std::string& text) {
             // x y z, optionally w or an r g b colour (a common extension); only xyz is used,
             // but every value must be a number so truncation is noticed.
             if (tok.size() < 4 || tok.size() > 7) fail(line, "'v' needs x y z [w] (or x y z r g b)");
-            glm::dvec3 p(parseNumber(tok[1], line), parseNumber(tok[2], line), parseNumber(tok[3], line));
+            const double m = limits::kMaxLocalCoordinate;
+            glm::dvec3 p(parseNumber(tok[1], line, m), parseNumber(tok[2], line, m), parseNumber(tok[3], line, m));
             for (size_t k = 4; k < tok.size(); ++k) parseNumber(tok[k], line);
             if (mesh.positions.size() >= UINT32_MAX) fail(line, "too many vertices for 32-bit indices");
             mesh.positions.push_back(p);
@@ -218,37 +247,60 @@ Mesh parseObj(const fs::path& path, const std::string& text) {
                 mesh.triangleGroup.push_back(group);
             }
         } else if (key == "usemtl") {
-            group = groupFor(restAfter(stmt, key));
+            const std::string name = restAfter(stmt, key);
+            group = groupFor(name);
+            usedAt.emplace(name, line);
             haveGroup = true;
         } else if (key == "mtllib") {
             // Names are space-separated, but accept a single name with spaces if it exists.
             const fs::path dir = path.parent_path();
             std::error_code ec;
+            if (tok.size() < 2) fail(line, "'mtllib' needs a file name");
             if (std::string whole = restAfter(stmt, key); fs::is_regular_file(dir / whole, ec)) {
-                mtlFiles.push_back(dir / whole);
+                mtlFiles.emplace_back(dir / whole, line);
             } else {
-                for (size_t k = 1; k < tok.size(); ++k) mtlFiles.push_back(dir / std::string(tok[k]));
+                for (size_t k = 1; k < tok.size(); ++k) mtlFiles.emplace_back(dir / std::string(tok[k]), line);
             }
         }
         // Everything else (o, g, s, l, p, vp, curves, ...) does not affect the triangles.
     }
 
     if (mesh.groups.empty()) groupFor("");  // no faces and no usemtl: still one group
-    std::set<std::string> alphaTested;
-    for (const fs::path& mtl : mtlFiles) readMtl(mtl, alphaTested);
-    for (PrimitiveGroup& g : mesh.groups) g.alphaTested = alphaTested.count(g.name) > 0;
+    Materials materials;
+    for (const auto& [mtl, mtllibLine] : mtlFiles) {
+        readMtl(mtl, mtllibLine, materials);
+        mesh.sourceFiles.push_back(mtl.string());
+    }
+    // A material the libraries do not define has unknown alpha: the group is marked, and
+    // loading its model fails unless a .model override decides (never a guess of opaque).
+    // A bare `usemtl`, the "" group, names no material.
+    for (PrimitiveGroup& g : mesh.groups) {
+        g.alphaTested = materials.alphaTested.count(g.name) > 0;
+        if (!g.name.empty() && !materials.defined.count(g.name))
+            g.alphaUnknown = makeError(
+                ErrorKind::BadInput, path.string(), usedAt.at(g.name),
+                "material " + quoted(std::string_view(g.name)) + " is not defined" +
+                    (mtlFiles.empty() ? " (the file names no material library, 'mtllib')"
+                                      : " in the material libraries the file names") +
+                    ", so whether it is alpha-tested is unknown (a .model <primitiveGroup alphaTest=...> decides it)");
+    }
     return mesh;
 }
 
 }  // namespace
 
 Expected<Mesh> loadObj(const std::string& path) {
-    std::string text;
-    if (!readFile(path, text)) return makeError(ErrorKind::MissingResource, path, 0, "cannot open OBJ file");
+    Expected<std::string> text = readRegularFile(path, "OBJ file");
+    if (!text) return text.error();
     try {
-        return parseObj(path, text);
+        rejectBinary(*text);
+        Mesh mesh = parseObj(path, *text);
+        mesh.sourceFiles.insert(mesh.sourceFiles.begin(), path);
+        return std::move(mesh);
     } catch (const ObjFailure& f) {
         return makeError(ErrorKind::BadInput, path, f.line, f.message);
+    } catch (const MtlFailure& f) {
+        return makeError(ErrorKind::BadInput, f.file, f.line, f.message + " (material library of " + path + ")");
     }
 }
 

@@ -82,6 +82,7 @@ struct Heightfield {
     int n = 0;                    // samples per side, >= 2
     double size = 0.0;            // chunk size S, metres
     std::vector<double> heights;  // n*n, row-major: heights[j*n + i], metres
+    std::vector<std::string> sourceFiles;  // the .terrain and its PNG
     double at(int i, int j) const { return heights[size_t(j) * size_t(n) + size_t(i)]; }
     // Height of the triangulated surface at chunk-local (x, z), clamped to the square.
     double heightAt(double x, double z) const;
@@ -110,6 +111,9 @@ struct ChunkObject {
 struct ChunkFile {
     std::string path;
     ChunkCoord coord;
+    // Hash of the bytes the objects were read from: the bake writes the file only while it
+    // still holds exactly these bytes (an edit made during the bake is never overwritten).
+    uint64_t contentHash = 0;
     std::vector<ChunkObject> objects;
 };
 
@@ -125,6 +129,9 @@ struct Space {
     SpaceSettings settings;
     std::map<ChunkCoord, ChunkFile> chunks;
     std::vector<Diagnostic> diagnostics;  // objects skipped, files ignored
+    // Every file the space was read from (space.xml, chunk files, resources and the files
+    // they name), sorted: outputs must never replace one of them.
+    std::vector<std::string> inputFiles() const;
 };
 
 // Reads space.xml. `resourceRootOverride` (from --res) wins over <resourceRoot>.

@@ -9,13 +9,17 @@
 #include <cstring>
 #include <csetjmp>
 #include <filesystem>
+#include <limits>
 #include <set>
 
 #include <glm/geometric.hpp>
 #include <png.h>
 #include <tinyxml2.h>
 
+#include "core/file_read.h"
 #include "core/format.h"
+#include "core/hash.h"
+#include "core/limits.h"
 #include "core/scene.h"
 
 namespace fs = std::filesystem;
@@ -116,8 +120,10 @@ Error bad(const std::string& file, int line, const std::string& msg) {
     return makeError(ErrorKind::BadInput, file, line, msg);
 }
 
-// Parses `count` finite doubles separated by white space; nothing else may follow.
-Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, double* out, int count) {
+// Parses `count` finite doubles separated by white space, each within [-maxAbs, maxAbs]
+// (core/limits.h); nothing else may follow.
+Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, double* out, int count,
+                    double maxAbs = std::numeric_limits<double>::max()) {
     std::string text = trim(e->GetText());
     const char* p = text.c_str();
     for (int k = 0; k < count; ++k) {
@@ -129,6 +135,10 @@ Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, doub
                        "<" + std::string(e->Name()) + "> expects " + std::to_string(count) + " number(s), got '" + text + "'");
         if (!std::isfinite(out[k]))
             return bad(file, e->GetLineNum(), "<" + std::string(e->Name()) + "> has a non-finite value '" + text + "'");
+        if (std::abs(out[k]) > maxAbs)
+            return bad(file, e->GetLineNum(),
+                       "<" + std::string(e->Name()) + "> value " + formatNumber(out[k]) + " is outside the accepted range [-" +
+                           formatNumber(maxAbs) + ", " + formatNumber(maxAbs) + "] (docs/format.md, accepted ranges)");
         p = end;
     }
     while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r') ++p;
@@ -137,15 +147,17 @@ Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, doub
     return Status::ok();
 }
 
-Status parseVec3(const std::string& file, const tinyxml2::XMLElement* e, glm::dvec3& v) {
+Status parseVec3(const std::string& file, const tinyxml2::XMLElement* e, glm::dvec3& v,
+                 double maxAbs = std::numeric_limits<double>::max()) {
     double d[3];
-    Status s = parseNumbers(file, e, d, 3);
+    Status s = parseNumbers(file, e, d, 3, maxAbs);
     if (s) v = glm::dvec3(d[0], d[1], d[2]);
     return s;
 }
 
-Status parseDouble(const std::string& file, const tinyxml2::XMLElement* e, double& v) {
-    return parseNumbers(file, e, &v, 1);
+Status parseDouble(const std::string& file, const tinyxml2::XMLElement* e, double& v,
+                   double maxAbs = std::numeric_limits<double>::max()) {
+    return parseNumbers(file, e, &v, 1, maxAbs);
 }
 
 Status parseBool(const std::string& file, const tinyxml2::XMLElement* e, bool& v) {
@@ -157,12 +169,17 @@ Status parseBool(const std::string& file, const tinyxml2::XMLElement* e, bool& v
     return Status::ok();
 }
 
-// Loads an XML file; a syntax error names the line tinyxml2 reports.
-Status loadXml(const std::string& path, tinyxml2::XMLDocument& doc, ErrorKind missingKind = ErrorKind::MissingResource) {
-    std::FILE* f = std::fopen(path.c_str(), "rb");
-    if (!f) return makeError(missingKind, path, 0, std::string("cannot open: ") + std::strerror(errno));
-    tinyxml2::XMLError rc = doc.LoadFile(f);
-    std::fclose(f);
+// Loads an XML file (a regular file only: core/file_read.h); a syntax error names the line
+// tinyxml2 reports. `contentHash`, when given, receives the hash of the bytes parsed.
+Status loadXml(const std::string& path, tinyxml2::XMLDocument& doc, const std::string& what,
+               ErrorKind missingKind = ErrorKind::MissingResource, uint64_t* contentHash = nullptr) {
+    Expected<std::string> text = readRegularFile(path, what, missingKind, size_t(1) << 30);
+    if (!text) return text.error();
+    if (contentHash) *contentHash = Hasher().str(*text).value();
+    if (text->find('\0') != std::string::npos)
+        return bad(path, 1 + int(std::count(text->begin(), text->begin() + std::ptrdiff_t(text->find('\0')), '\n')),
+                   "binary data (a NUL byte) in an XML file");
+    tinyxml2::XMLError rc = doc.Parse(text->data(), text->size());
     if (rc != tinyxml2::XML_SUCCESS) {
         const char* s = doc.ErrorStr();
         return bad(path, doc.ErrorLineNum(), std::string("malformed XML: ") + (s ? s : doc.ErrorName()));
@@ -187,21 +204,24 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
             else if (t == "spot") L.type = LightType::Spot;
             else return bad(file, e->GetLineNum(), "unknown light type '" + t + "' (directional, point or spot)");
         } else if (n == "direction") { s = parseVec3(file, e, L.direction); hasDirection = true; }
-        else if (n == "position") { s = parseVec3(file, e, L.position); hasPosition = true; }
-        else if (n == "range") { s = parseDouble(file, e, L.range); hasRange = true; }
+        else if (n == "position") { s = parseVec3(file, e, L.position, limits::kMaxWorldCoordinate); hasPosition = true; }
+        else if (n == "range") { s = parseDouble(file, e, L.range, limits::kMaxLength); hasRange = true; }
         else if (n == "coneAngle") { s = parseDouble(file, e, L.coneHalfAngleDeg); hasCone = true; }
-        else if (n == "bias") s = parseDouble(file, e, L.bias);
-        else if (n == "slopeBias") s = parseDouble(file, e, L.slopeBias);
-        else if (n == "filterRadius") s = parseDouble(file, e, L.filterRadius);
+        else if (n == "bias") s = parseDouble(file, e, L.bias, limits::kMaxLength);
+        else if (n == "slopeBias") s = parseDouble(file, e, L.slopeBias, limits::kMaxLength);
+        else if (n == "filterRadius") s = parseDouble(file, e, L.filterRadius, limits::kMaxLength);
         if (!s) return s.error();
     }
     const std::string who = "light '" + L.name + "'";
     if (!hasType) return bad(file, L.line, who + " has no <type>");
     if (L.type != LightType::Point) {
         if (!hasDirection) return bad(file, L.line, who + " needs a <direction>");
-        double len = glm::length(L.direction);
-        if (!(len > 0.0) || !std::isfinite(len)) return bad(file, L.line, who + " has a zero <direction>");
-        L.direction /= len;
+        // Scale by the largest component first: (1e308, 1e308, 0) and (1e-300, 0, 0) are
+        // directions too, and their length would overflow or underflow.
+        const double big = std::max({std::abs(L.direction.x), std::abs(L.direction.y), std::abs(L.direction.z)});
+        if (!(big > 0.0)) return bad(file, L.line, who + " has a zero <direction>");
+        L.direction /= big;
+        L.direction /= glm::length(L.direction);
     }
     if (L.type != LightType::Directional) {
         if (!hasPosition) return bad(file, L.line, who + " needs a <position>");
@@ -221,16 +241,19 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
     st.spaceDir = spaceDir;
     const std::string file = (fs::path(spaceDir) / "space.xml").string();
     tinyxml2::XMLDocument doc;
-    if (Status s = loadXml(file, doc, ErrorKind::BadInput); !s) return s.error();
+    if (Status s = loadXml(file, doc, "space.xml", ErrorKind::BadInput); !s) return s.error();
     std::string resourceRoot;
     for (const tinyxml2::XMLElement* e = doc.RootElement()->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
         Status s;
         if (n == "chunkSize") {
             s = parseDouble(file, e, st.chunkSize);
-            if (s && !(st.chunkSize > 0)) return bad(file, e->GetLineNum(), "<chunkSize> must be > 0");
+            if (s && !(st.chunkSize >= limits::kMinChunkSize && st.chunkSize <= limits::kMaxChunkSize))
+                return bad(file, e->GetLineNum(), "<chunkSize> " + formatNumber(st.chunkSize) + " is outside the accepted range [" +
+                                                      formatNumber(limits::kMinChunkSize) + ", " +
+                                                      formatNumber(limits::kMaxChunkSize) + "] m");
         } else if (n == "terrainTolerance") {
-            s = parseDouble(file, e, st.terrainTolerance);
+            s = parseDouble(file, e, st.terrainTolerance, limits::kMaxLength);
             if (s && st.terrainTolerance < 0) return bad(file, e->GetLineNum(), "<terrainTolerance> must not be negative");
         } else if (n == "resourceRoot") {
             resourceRoot = trim(e->GetText());
@@ -270,6 +293,15 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
     if (resourceRoot.empty()) st.resourceRoot = spaceDir;
     else if (fs::path(resourceRoot).is_absolute() || !resourceRootOverride.empty()) st.resourceRoot = resourceRoot;
     else st.resourceRoot = (fs::path(spaceDir) / resourceRoot).string();
+    // One error up front instead of one warning per object that names a resource.
+    std::error_code ec;
+    const bool isDir = fs::is_directory(st.resourceRoot, ec);
+    if (ec || !isDir) {
+        const std::string why = ec ? ec.message() : fs::exists(st.resourceRoot, ec) ? "not a directory" : "no such directory";
+        return makeError(ErrorKind::MissingResource, resourceRootOverride.empty() ? file : st.resourceRoot, 0,
+                         "resource root " + st.resourceRoot + " cannot be used: " + why +
+                             (resourceRootOverride.empty() ? " (<resourceRoot> of space.xml)" : " (--res)"));
+    }
     return st;
 }
 
@@ -278,7 +310,7 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
     cf.path = path;
     cf.coord = coord;
     tinyxml2::XMLDocument doc(true, tinyxml2::PRESERVE_WHITESPACE);
-    if (Status s = loadXml(path, doc, ErrorKind::BadInput); !s) return s.error();
+    if (Status s = loadXml(path, doc, "chunk file", ErrorKind::BadInput, &cf.contentHash); !s) return s.error();
     int index = 0;
     for (const tinyxml2::XMLElement* e = doc.RootElement()->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
@@ -306,7 +338,8 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
                 for (int r = 0; r < 4; ++r) {
                     const tinyxml2::XMLElement* re = c->FirstChildElement(rowNames[r]);
                     if (!re) { skip(c->GetLineNum(), std::string("<transform> has no <") + rowNames[r] + ">"); continue; }
-                    if (Status s = parseVec3(path, re, o.transform.rows[size_t(r)]); !s)
+                    const double maxAbs = r < 3 ? limits::kMaxLinearEntry : limits::kMaxLocalCoordinate;
+                    if (Status s = parseVec3(path, re, o.transform.rows[size_t(r)], maxAbs); !s)
                         skip(re->GetLineNum(), s.error().message);
                 }
                 double det = o.transform.determinant();
@@ -326,9 +359,15 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
 Expected<Mesh> loadModelResource(const std::string& path) {
     std::string ext = fs::path(path).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    if (ext != ".model") return loadMeshFile(path);
+    if (ext != ".model") {
+        Expected<Mesh> mesh = loadMeshFile(path);
+        if (mesh)
+            for (const PrimitiveGroup& g : mesh->groups)
+                if (g.alphaUnknown) return *g.alphaUnknown;
+        return mesh;
+    }
     tinyxml2::XMLDocument doc;
-    if (Status s = loadXml(path, doc); !s) return s.error();
+    if (Status s = loadXml(path, doc, "model resource"); !s) return s.error();
     const tinyxml2::XMLElement* root = doc.RootElement();
     const tinyxml2::XMLElement* visual = root->FirstChildElement("visual");
     if (!visual || trim(visual->GetText()).empty()) return bad(path, root->GetLineNum(), "<model> has no <visual>");
@@ -351,20 +390,32 @@ Expected<Mesh> loadModelResource(const std::string& path) {
             if (v == "true" || v == "1") *flag = true;
             else if (v == "false" || v == "0") *flag = false;
             else return bad(path, g->GetLineNum(), std::string(attr) + " expects true or false, got '" + v + "'");
+            if (flag == &pg.alphaTested) pg.alphaUnknown.reset();  // the override decides
         }
     }
+    for (const PrimitiveGroup& g : mesh->groups)
+        if (g.alphaUnknown) return *g.alphaUnknown;
+    mesh->sourceFiles.insert(mesh->sourceFiles.begin(), path);
     return mesh;
 }
 
 namespace {
 
+// libpng reads from memory: the file was read whole by readRegularFile (which refuses a
+// FIFO or directory named like a heightmap instead of blocking on it).
 struct PngReader {
     png_structp png = nullptr;
     png_infop info = nullptr;
-    std::FILE* f = nullptr;
+    const std::string* bytes = nullptr;
+    size_t at = 0;
     ~PngReader() {
         if (png) png_destroy_read_struct(&png, info ? &info : nullptr, nullptr);
-        if (f) std::fclose(f);
+    }
+    static void read(png_structp png, png_bytep out, png_size_t n) {
+        auto* r = static_cast<PngReader*>(png_get_io_ptr(png));
+        if (n > r->bytes->size() - r->at) png_error(png, "truncated");
+        std::memcpy(out, r->bytes->data() + r->at, n);
+        r->at += n;
     }
 };
 
@@ -372,33 +423,36 @@ struct PngReader {
 
 Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkSize) {
     tinyxml2::XMLDocument doc;
-    if (Status s = loadXml(path, doc); !s) return s.error();
+    if (Status s = loadXml(path, doc, "terrain resource"); !s) return s.error();
     const tinyxml2::XMLElement* root = doc.RootElement();
     const tinyxml2::XMLElement* he = root->FirstChildElement("heights");
     const tinyxml2::XMLElement* mn = root->FirstChildElement("minHeight");
     const tinyxml2::XMLElement* mx = root->FirstChildElement("maxHeight");
     if (!he || !mn || !mx) return bad(path, root->GetLineNum(), "<terrain> needs <heights>, <minHeight> and <maxHeight>");
     double minH = 0, maxH = 0;
-    if (Status s = parseDouble(path, mn, minH); !s) return s.error();
-    if (Status s = parseDouble(path, mx, maxH); !s) return s.error();
+    if (Status s = parseDouble(path, mn, minH, limits::kMaxLength); !s) return s.error();
+    if (Status s = parseDouble(path, mx, maxH, limits::kMaxLength); !s) return s.error();
     if (maxH < minH) return bad(path, mx->GetLineNum(), "<maxHeight> is below <minHeight>");
     const std::string png = (fs::path(path).parent_path() / trim(he->GetText())).string();
 
+    Expected<std::string> bytes = readRegularFile(png, "heightmap", ErrorKind::MissingResource, size_t(1) << 30);
+    if (!bytes) return bytes.error();
     PngReader r;
-    r.f = std::fopen(png.c_str(), "rb");
-    if (!r.f) return makeError(ErrorKind::MissingResource, png, 0, std::string("cannot open heightmap: ") + std::strerror(errno));
-    unsigned char sig[8];
-    if (std::fread(sig, 1, 8, r.f) != 8 || png_sig_cmp(sig, 0, 8)) return bad(png, 0, "not a PNG file");
+    r.bytes = &*bytes;
+    if (bytes->size() < 8 || png_sig_cmp(reinterpret_cast<png_const_bytep>(bytes->data()), 0, 8))
+        return bad(png, 0, "not a PNG file");
+    r.at = 8;
     r.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
     r.info = r.png ? png_create_info_struct(r.png) : nullptr;
     if (!r.info) return makeError(ErrorKind::Internal, png, 0, "libpng initialisation failed");
     Heightfield hf;
     hf.size = chunkSize;
+    hf.sourceFiles = {path, png};
     std::vector<png_byte> data;
     // libpng reports corrupt or truncated data by longjmp; everything below lives in `hf`,
     // `data` and `r`, which the return after the jump cleans up.
     if (setjmp(png_jmpbuf(r.png))) return bad(png, 0, "corrupt or truncated PNG data");
-    png_init_io(r.png, r.f);
+    png_set_read_fn(r.png, &r, &PngReader::read);
     png_set_sig_bytes(r.png, 8);
     png_read_info(r.png, r.info);
     png_uint_32 w = png_get_image_width(r.png, r.info), h = png_get_image_height(r.png, r.info);
@@ -449,7 +503,40 @@ bool loadOnce(std::map<std::string, Expected<std::shared_ptr<const T>>>& cache, 
     return true;
 }
 
+// Why a placed mesh lies outside what the stages can represent (core/limits.h), or nothing.
+// The bounds of the mesh's box under the transform bound every placed vertex.
+std::optional<std::string> placedBeyondLimits(const Mesh& mesh, const RowTransform& t) {
+    glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+    for (const glm::dvec3& p : mesh.positions) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    if (mesh.positions.empty()) return std::nullopt;
+    double reach = 0;
+    for (int k = 0; k < 8; ++k) {
+        const glm::dvec3 corner((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+        const glm::dvec3 q = t.apply(corner);
+        reach = std::max({reach, std::abs(q.x), std::abs(q.y), std::abs(q.z)});
+    }
+    if (reach <= limits::kMaxLocalCoordinate) return std::nullopt;
+    return "placed, the mesh reaches " + formatNumber(reach) + " m from its chunk origin, beyond the accepted " +
+           formatNumber(limits::kMaxLocalCoordinate) + " m (docs/format.md, accepted ranges)";
+}
+
 }  // namespace
+
+std::vector<std::string> Space::inputFiles() const {
+    std::set<std::string> files{(fs::path(settings.spaceDir) / "space.xml").string()};
+    for (const auto& [coord, cf] : chunks) {
+        files.insert(cf.path);
+        for (const ChunkObject& o : cf.objects) {
+            if (!o.resource.empty()) files.insert((fs::path(settings.resourceRoot) / o.resource).lexically_normal().string());
+            if (o.mesh) files.insert(o.mesh->sourceFiles.begin(), o.mesh->sourceFiles.end());
+            if (o.heightfield) files.insert(o.heightfield->sourceFiles.begin(), o.heightfield->sourceFiles.end());
+        }
+    }
+    return {files.begin(), files.end()};
+}
 
 Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resourceRootOverride,
                           const std::vector<ChunkCoord>* only) {
@@ -472,13 +559,23 @@ Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resour
         if (de.path().extension() == ".chunk") files.push_back(de.path());
     if (ec) return makeError(ErrorKind::BadInput, spaceDir, 0, "cannot list the space directory: " + ec.message());
     std::sort(files.begin(), files.end());
+    std::map<ChunkCoord, fs::path> named;
     for (const fs::path& p : files) {
         std::optional<ChunkCoord> c = parseChunkName(p.filename().string());
         if (!c) {
             space.diagnostics.push_back({p.string(), 0, "not a chunk name (XXXXZZZZo.chunk, 16-bit hex); file ignored"});
             continue;
         }
-        if (only && !wanted.count(*c)) continue;
+        // Hex digits in either case name the same chunk: two such files are two versions of
+        // one chunk, and baking either would silently drop the other.
+        if (auto [it, added] = named.emplace(*c, p); !added)
+            return bad(p.string(), 0, "names the same chunk as " + it->second.filename().string() + " (grid " +
+                                          std::to_string(c->x) + ", " + std::to_string(c->z) +
+                                          "); keep one of the two files");
+    }
+    for (const fs::path& p : files) {
+        std::optional<ChunkCoord> c = parseChunkName(p.filename().string());
+        if (!c || (only && !wanted.count(*c))) continue;
         Expected<ChunkFile> cf = readChunkFile(p.string(), *c, space.diagnostics);
         if (!cf) return cf.error();
         space.chunks.emplace(*c, std::move(*cf));
@@ -501,6 +598,13 @@ Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resour
                 o.skipped = true;
                 o.skipReason = "resource " + o.resource + " could not be loaded";
                 space.diagnostics.push_back({cf.path, o.line, o.skipReason + "; object skipped (its <shadow> is left as it was)"});
+            } else if (o.mesh) {
+                if (std::optional<std::string> far = placedBeyondLimits(*o.mesh, o.transform)) {
+                    o.skipped = true;
+                    o.skipReason = *far;
+                    o.mesh.reset();
+                    space.diagnostics.push_back({cf.path, o.line, *far + "; object skipped (its <shadow> is left as it was)"});
+                }
             }
         }
     }

@@ -14,6 +14,7 @@ enum class ErrorKind {
     MissingResource,  // a referenced file does not exist or cannot be opened (exit 3)
     Io,               // writing failed (exit 4)
     Internal,         // a library (Embree, CGAL, GL) failed (exit 5)
+    Busy,             // another process holds the lock on what this one would write (exit 6)
 };
 
 // A failure: which file, which line (0 when the file has no lines, e.g. binary data),

@@ -68,20 +68,6 @@ const std::vector<NamedScene>& scenesWithSample() {
     return s;
 }
 
-// Runs the shadowcull binary; returns its exit code. Output goes to out/err files.
-int runCli(const std::string& args, const fs::path& outFile, const fs::path& errFile) {
-    std::string cmd = std::string(SHADOWCULL_BIN) + " " + args + " > '" + outFile.string() + "' 2> '" + errFile.string() + "'";
-    int rc = std::system(cmd.c_str());
-    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-}
-
-std::map<std::string, std::string> chunkTexts(const fs::path& dir) {
-    std::map<std::string, std::string> m;
-    for (const auto& e : fs::directory_iterator(dir))
-        if (e.path().extension() == ".chunk") m[e.path().filename().string()] = readText(e.path());
-    return m;
-}
-
 }  // namespace
 
 // Every known answer of every scene: a true 1 is never written 0 and here is always proved

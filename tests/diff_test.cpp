@@ -231,7 +231,7 @@ TEST(Diff, BadInputExitsThree) {
 
     r = diff(dir / "missing.json", good);
     EXPECT_EQ(r.code, cli::kExitBadInput);
-    EXPECT_NE(r.err.find("missing.json: cannot read the file"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("missing.json: cannot open results file"), std::string::npos) << r.err;
 }
 
 // Baked spaces: only the <shadow> masks are compared; evidence is unavailable and said so.

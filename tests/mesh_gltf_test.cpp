@@ -452,3 +452,25 @@ TEST(MeshGltf, InvalidContentIsAnError) {
     ASSERT_FALSE(missing);
     EXPECT_EQ(missing.error().kind, ErrorKind::MissingResource);
 }
+
+// Issue 11: a node scale of 1e20 (finite) used to reach Embree as 1e20-metre triangles and
+// abort the process; a mesh whose primitives are empty stopped the whole bake with an
+// Embree error naming a chunk. Both are errors of the file now.
+TEST(MeshGltf, HugePlacementsAndEmptyMeshesAreErrorsOfTheFile) {
+    for (const json& node : {json{{"scale", {1e20, 1, 1}}}, json{{"translation", {0, 2e18, 0}}},
+                             json{{"matrix", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, -1e308, 0, 0, 1}}}}) {
+        SCOPED_TRACE(node.dump());
+        expectError(loadString(oneTriangle(node).gltf()), "beyond the accepted 100000 m");
+    }
+    // 1e5 m exactly is accepted: the bound is inclusive.
+    EXPECT_TRUE(loadString(oneTriangle({{"translation", {99999, 0, 0}}}).gltf()));
+
+    GltfBuilder none;
+    none.addMesh(json::array());
+    none.addNode({{"mesh", 0}});
+    const fs::path p = freshTestDir() / "m.gltf";
+    writeText(p, none.gltf());
+    ASSERT_TRUE(loadGltf(p.string()));  // a valid glTF document...
+    const Expected<Mesh> m = loadMeshFile(p.string());
+    expectError(m, "no triangles");  // ...that no model can be baked from
+}

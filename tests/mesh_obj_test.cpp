@@ -114,12 +114,49 @@ TEST(MeshObj, MapDMakesMaterialAlphaTestedButDAloneDoesNot) {
     EXPECT_FALSE(m->groups[2].alphaTested);
 }
 
-TEST(MeshObj, SeveralMtlLibrariesAndMissingOneIsNotFatal) {
-    auto m = loadText("mtllib missing.mtl sub/b.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n",
-                      {{"sub/b.mtl", "newmtl x\nmap_d a.png\n"}});
+TEST(MeshObj, SeveralMtlLibraries) {
+    auto m = loadText("mtllib a.mtl sub/b.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\nusemtl y\nf 1 2 3\n",
+                      {{"a.mtl", "newmtl y\n"}, {"sub/b.mtl", "newmtl x\nmap_d a.png\n"}});
     ASSERT_TRUE(m) << m.error().what();
-    ASSERT_EQ(m->groups.size(), 1u);
+    ASSERT_EQ(m->groups.size(), 2u);
     EXPECT_TRUE(m->groups[0].alphaTested);
+    EXPECT_FALSE(m->groups[1].alphaTested);
+    EXPECT_FALSE(m->groups[0].alphaUnknown || m->groups[1].alphaUnknown);
+}
+
+// Issue 11: a missing, unreadable or broken material library, or a material no library
+// defines, used to bake alpha-tested leaves as opaque without a word (false culls).
+TEST(MeshObj, MissingOrBrokenMaterialsAreErrorsNeverOpaqueGuesses) {
+    auto missing = loadText("v 0 0 0\nv 1 0 0\nv 0 1 0\nmtllib missing.mtl\nusemtl x\nf 1 2 3\n", {});
+    ASSERT_FALSE(missing);
+    EXPECT_EQ(missing.error().line, 4);
+    EXPECT_NE(missing.error().message.find("mtllib 'missing.mtl'"), std::string::npos) << missing.error().what();
+
+    auto dir = loadText("mtllib lib\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n", {{"lib/x", ""}});
+    ASSERT_FALSE(dir);  // a directory named like the library
+    EXPECT_EQ(dir.error().line, 1);
+
+    const std::string obj = "mtllib lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl leaves\nf 1 2 3\n";
+    for (const auto& [mtl, line, words] : std::vector<std::tuple<std::string, int, std::string>>{
+             {std::string("newmtl leaves\nKd 0 1 0\0\x01\x02", 25), 2, "binary data"},
+             {"# lib\nnewmtl\nmap_d a.png\n", 2, "needs a material name"},
+             {"map_d a.png\nnewmtl leaves\n", 1, "before any 'newmtl'"},
+             {"newmtl leaves\nmap_d\n", 2, "needs a texture file"}}) {
+        auto m = loadText(obj, {{"lib.mtl", mtl}});
+        ASSERT_FALSE(m) << words;
+        EXPECT_NE(m.error().file.find("lib.mtl"), std::string::npos) << m.error().what();
+        EXPECT_EQ(m.error().line, line) << m.error().what();
+        EXPECT_NE(m.error().message.find(words), std::string::npos) << m.error().what();
+    }
+
+    // A material no library defines: the group's alpha is unknown, and a model made of
+    // the mesh alone cannot be loaded (the error names the usemtl line).
+    auto undefined = loadText("mtllib lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl leaves\nf 1 2 3\nusemtl bark\nf 1 2 3\n",
+                              {{"lib.mtl", "newmtl leaves\nmap_d a.png\n"}});
+    ASSERT_TRUE(undefined) << undefined.error().what();
+    EXPECT_FALSE(undefined->groups[0].alphaUnknown);
+    ASSERT_TRUE(undefined->groups[1].alphaUnknown);
+    EXPECT_EQ(undefined->groups[1].alphaUnknown->line, 7);
 }
 
 TEST(MeshObj, NegativeIndicesAndAllVertexForms) {

@@ -147,6 +147,7 @@ TEST(SpaceReader, NeighboursPerSideAndResourceRoot) {
     fs::path dir = freshTestDir();
     writeText(dir / "space.xml",
               "<space><neighbours left=\"2\" right=\"0\" top=\"3\" bottom=\"1\"/><resourceRoot> res </resourceRoot></space>");
+    fs::create_directories(dir / "res");
     auto s = readSpaceSettings(dir.string(), "");
     ASSERT_TRUE(s) << s.error().what();
     EXPECT_EQ(s->neighbours.left, 2);
@@ -155,9 +156,15 @@ TEST(SpaceReader, NeighboursPerSideAndResourceRoot) {
     EXPECT_EQ(s->neighbours.bottom, 1);
     EXPECT_EQ(fs::path(s->resourceRoot), dir / "res");
     EXPECT_EQ(s->chunkSize, 100);  // default
-    auto o = readSpaceSettings(dir.string(), "/elsewhere");
-    ASSERT_TRUE(o);
-    EXPECT_EQ(o->resourceRoot, "/elsewhere");
+    fs::create_directories(dir / "elsewhere");
+    auto o = readSpaceSettings(dir.string(), (dir / "elsewhere").string());
+    ASSERT_TRUE(o) << o.error().what();
+    EXPECT_EQ(o->resourceRoot, (dir / "elsewhere").string());
+    // A resource root that is not a directory is one error up front (it was a warning for
+    // every object that names a resource).
+    auto missing = readSpaceSettings(dir.string(), "/nonexistent-shadowcull-root");
+    ASSERT_FALSE(missing);
+    EXPECT_EQ(missing.error().kind, ErrorKind::MissingResource);
 }
 
 // Each bad space.xml is an error that names the file and the line of the offending element.
@@ -185,7 +192,7 @@ TEST(SpaceReader, BadInputNamesFileAndLine) {
                         "    <range>5</range><coneAngle>120</coneAngle>"),
          2, "coneAngle"},
         {"bad number", "<space>\n<chunkSize> 1O0 </chunkSize>\n</space>", 2, "trailing text"},
-        {"negative chunk", "<space>\n<chunkSize> -5 </chunkSize>\n</space>", 2, "> 0"},
+        {"negative chunk", "<space>\n<chunkSize> -5 </chunkSize>\n</space>", 2, "outside the accepted range [1, 100000]"},
         {"malformed", "<space>\n<chunkSize> 100 </chunkSize>\n<light>\n</space>", 3, "malformed XML"},  // the unclosed element
         {"33 lights", many, 34, "more than 32 lights"},
     };
@@ -356,8 +363,18 @@ TEST(ModelReader, AppliesGroupOverrides) {
     fs::path dir = freshTestDir();
     writeText(dir / "m.obj",
               "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl bark\nf 1 2 3\nusemtl leaves\nf 1 3 2\n");
-    writeText(dir / "m.model",
+    // The OBJ names no material library: alpha of 'bark' and 'leaves' is unknown until the
+    // .model states it for both groups.
+    writeText(dir / "half.model",
               "<model>\n <visual> m.obj </visual>\n <primitiveGroup index=\"1\" alphaTest=\"true\" doubleSided=\"true\"/>\n</model>");
+    auto half = loadModelResource((dir / "half.model").string());
+    ASSERT_FALSE(half);
+    EXPECT_EQ(half.error().file, (dir / "m.obj").string());
+    EXPECT_EQ(half.error().line, 4);
+    EXPECT_NE(half.error().message.find("'bark' is not defined"), std::string::npos) << half.error().what();
+    writeText(dir / "m.model",
+              "<model>\n <visual> m.obj </visual>\n <primitiveGroup index=\"1\" alphaTest=\"true\" doubleSided=\"true\"/>\n"
+              " <primitiveGroup index=\"0\" alphaTest=\"false\"/>\n</model>");
     auto m = loadModelResource((dir / "m.model").string());
     ASSERT_TRUE(m) << m.error().what();
     ASSERT_EQ(m->groups.size(), 2u);

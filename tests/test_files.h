@@ -2,8 +2,12 @@
 // whole-file read/write.
 #pragma once
 
+#include <sys/wait.h>
+
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 
@@ -50,6 +54,24 @@ inline std::string readText(const std::filesystem::path& p) {
     std::ostringstream ss;
     ss << in.rdbuf();
     return ss.str();
+}
+
+#ifdef SHADOWCULL_BIN
+// Runs the shadowcull executable with `args` (already quoted for the shell), stdout and
+// stderr into files; returns the exit code (-1 when it did not exit normally, e.g. a signal).
+inline int runCli(const std::string& args, const std::filesystem::path& outFile, const std::filesystem::path& errFile) {
+    std::string cmd = std::string(SHADOWCULL_BIN) + " " + args + " > '" + outFile.string() + "' 2> '" + errFile.string() + "'";
+    int rc = std::system(cmd.c_str());
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+#endif
+
+// Every *.chunk regular file of `dir` (never a FIFO a test made): name -> bytes.
+inline std::map<std::string, std::string> chunkTexts(const std::filesystem::path& dir) {
+    std::map<std::string, std::string> m;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+        if (e.path().extension() == ".chunk" && e.is_regular_file()) m[e.path().filename().string()] = readText(e.path());
+    return m;
 }
 
 }  // namespace shadowcull::testing

@@ -1,0 +1,63 @@
+#include "core/file_read.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <algorithm>
+#include <cstring>
+
+namespace shadowcull {
+
+Expected<std::string> readRegularFile(const std::string& path, const std::string& what, ErrorKind missingKind,
+                                      size_t maxBytes) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) return makeError(missingKind, path, 0, "cannot open " + what + ": " + std::strerror(errno));
+    struct Closer {
+        int fd;
+        ~Closer() { ::close(fd); }
+    } closer{fd};
+    struct stat st {};
+    if (::fstat(fd, &st) != 0)
+        return makeError(ErrorKind::Io, path, 0, "cannot inspect " + what + ": " + std::strerror(errno));
+    if (!S_ISREG(st.st_mode)) {
+        const char* kind = S_ISDIR(st.st_mode)    ? "a directory"
+                           : S_ISFIFO(st.st_mode) ? "a FIFO"
+                           : S_ISSOCK(st.st_mode) ? "a socket"
+                           : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "a device"
+                                                                          : "not a regular file";
+        return makeError(ErrorKind::BadInput, path, 0, what + " is " + kind + ", not a regular file");
+    }
+    if (uint64_t(st.st_size) > maxBytes)
+        return makeError(ErrorKind::BadInput, path, 0,
+                         what + " is " + std::to_string(st.st_size) + " bytes, more than the " +
+                             std::to_string(maxBytes) + " accepted");
+    // A regular file never returns EAGAIN; clear O_NONBLOCK anyway so reads behave as usual.
+    ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+    std::string out;
+    out.resize(size_t(st.st_size));
+    size_t done = 0;
+    for (;;) {
+        if (done == out.size()) {
+            // The file may have grown since fstat: read on until end of file.
+            if (out.size() >= maxBytes) {
+                char extra;
+                if (::read(fd, &extra, 1) > 0)
+                    return makeError(ErrorKind::BadInput, path, 0, what + " grew past the " + std::to_string(maxBytes) +
+                                                                       " bytes accepted while it was read");
+                break;
+            }
+            out.resize(std::min(maxBytes, out.size() + 65536));
+        }
+        const ssize_t n = ::read(fd, out.data() + done, out.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) return makeError(ErrorKind::Io, path, 0, "cannot read " + what + ": " + std::strerror(errno));
+        if (n == 0) break;
+        done += size_t(n);
+    }
+    out.resize(done);
+    return out;
+}
+
+}  // namespace shadowcull
