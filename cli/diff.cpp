@@ -5,6 +5,7 @@
 #include <tinyxml2.h>
 
 #include <algorithm>
+#include <limits>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -129,6 +130,25 @@ std::string jsonMessage(const std::exception& e) {
     return k == std::string::npos ? w : w.substr(k + 2);
 }
 
+// An integer field: a JSON integer (neither 2.5 nor 1e308: converting those is undefined)
+// within T's range.
+template <class T>
+T integer(const json& o, const char* key) {
+    const json& v = o.at(key);
+    const std::string what = std::string("'") + key + "' ";
+    if (!v.is_number_integer()) throw InputError{what + "must be an integer, not " + v.dump()};
+    using Limits = std::numeric_limits<T>;
+    if (v.is_number_unsigned()) {
+        const uint64_t u = v.get<uint64_t>();
+        if (u > uint64_t(Limits::max())) throw InputError{what + v.dump() + " is out of range"};
+        return T(u);
+    }
+    const int64_t s = v.get<int64_t>();
+    if (s < int64_t(Limits::min()) || (s > 0 && uint64_t(s) > uint64_t(Limits::max())))
+        throw InputError{what + v.dump() + " is out of range"};
+    return T(s);
+}
+
 Vec readVec(const json& a) {
     if (!a.is_array() || a.size() != 3) throw InputError{"expected [x, y, z]"};
     return {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
@@ -136,7 +156,7 @@ Vec readVec(const json& a) {
 
 Evidence readBit(const json& jl) {
     Evidence e;
-    e.bit = jl.at("bit").get<int>();
+    e.bit = integer<int>(jl, "bit");
     e.verdict = jl.at("verdict").get<std::string>();
     e.stage = jl.value("stage", std::string());
     e.reason = jl.value("reason", std::string());
@@ -153,21 +173,21 @@ Evidence readBit(const json& jl) {
 ObjectBake readObject(const json& jo, const std::string& at, std::string& where) {
     where = at;
     ObjectBake o;
-    o.element = jo.at("element").get<int>();
+    o.element = integer<int>(jo, "element");
     o.kind = jo.at("kind").get<std::string>();
     o.uuid = jo.value("uuid", std::string());
     o.skipped = jo.value("skipped", false);
     if (o.skipped) return o;
-    o.mask = jo.at("mask").get<uint32_t>();
+    o.mask = integer<uint32_t>(jo, "mask");
     for (const json& jg : jo.at("groups")) {
         const std::string ga = at + ".groups[" + std::to_string(o.groups.size()) + "]";
         where = ga;
-        if (jg.at("group").get<size_t>() != o.groups.size()) throw InputError{"groups out of order"};
+        if (integer<size_t>(jg, "group") != o.groups.size()) throw InputError{"groups out of order"};
         GroupBits g;
-        g.mask = jg.at("mask").get<uint32_t>();
+        g.mask = integer<uint32_t>(jg, "mask");
         for (const json& jl : jg.at("lights")) {
             where = ga + ".lights[" + std::to_string(g.lights.size()) + "]";
-            if (jl.at("light").get<size_t>() != g.lights.size() + 1) throw InputError{"lights out of order"};
+            if (integer<size_t>(jl, "light") != g.lights.size() + 1) throw InputError{"lights out of order"};
             g.lights.push_back(readBit(jl));
         }
         o.groups.push_back(std::move(g));
@@ -187,6 +207,9 @@ Bake readResults(const std::string& path, const std::string& text) {
         if (size_t k = msg.find("column"); k != std::string::npos && msg.find(": ", k) != std::string::npos)
             msg = msg.substr(msg.find(": ", k) + 2);
         throw InputError{path + ":" + std::to_string(line) + ": malformed JSON: " + msg};
+    } catch (const json::exception& e) {
+        // A number too large for a double (1e400) is out_of_range, not a parse error.
+        throw InputError{path + ": malformed JSON: " + jsonMessage(e)};
     }
     if (!j.is_object() || !j.contains("format") || j["format"] != "shadowcull-results")
         throw InputError{path + ": not a shadowcull results file (expected \"format\": \"shadowcull-results\")"};
@@ -194,7 +217,7 @@ Bake readResults(const std::string& path, const std::string& text) {
     b.path = path;
     std::string where = "top level";
     try {
-        if (j.at("version").get<int>() != 1)
+        if (integer<int>(j, "version") != 1)
             throw InputError{"unsupported version " + j["version"].dump() + " (this tool reads version 1)"};
         for (const json& L : j.at("lights")) {
             where = "lights[" + std::to_string(b.lights.size()) + "]";

@@ -408,9 +408,15 @@ struct PngReader {
     png_infop info = nullptr;
     const std::string* bytes = nullptr;
     size_t at = 0;
+    std::string message;  // libpng's reason, for the error (it prints nothing itself)
     ~PngReader() {
         if (png) png_destroy_read_struct(&png, info ? &info : nullptr, nullptr);
     }
+    [[noreturn]] static void error(png_structp png, png_const_charp what) {
+        static_cast<PngReader*>(png_get_error_ptr(png))->message = what ? what : "";
+        png_longjmp(png, 1);
+    }
+    static void warning(png_structp, png_const_charp) {}  // e.g. an unknown chunk: read on
     static void read(png_structp png, png_bytep out, png_size_t n) {
         auto* r = static_cast<PngReader*>(png_get_io_ptr(png));
         if (n > r->bytes->size() - r->at) png_error(png, "truncated");
@@ -442,16 +448,18 @@ Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkS
     if (bytes->size() < 8 || png_sig_cmp(reinterpret_cast<png_const_bytep>(bytes->data()), 0, 8))
         return bad(png, 0, "not a PNG file");
     r.at = 8;
-    r.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+    r.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &r, &PngReader::error, &PngReader::warning);
     r.info = r.png ? png_create_info_struct(r.png) : nullptr;
     if (!r.info) return makeError(ErrorKind::Internal, png, 0, "libpng initialisation failed");
     Heightfield hf;
     hf.size = chunkSize;
     hf.sourceFiles = {path, png};
     std::vector<png_byte> data;
-    // libpng reports corrupt or truncated data by longjmp; everything below lives in `hf`,
-    // `data` and `r`, which the return after the jump cleans up.
-    if (setjmp(png_jmpbuf(r.png))) return bad(png, 0, "corrupt or truncated PNG data");
+    std::vector<png_bytep> rows;
+    // libpng reports corrupt or truncated data by longjmp, which skips the destructor of
+    // anything constructed after this point: everything with one lives in `hf`, `data`,
+    // `rows` and `r`, made before it, which the return after the jump cleans up.
+    if (setjmp(png_jmpbuf(r.png))) return bad(png, 0, "corrupt or truncated PNG data (libpng: " + r.message + ")");
     png_set_read_fn(r.png, &r, &PngReader::read);
     png_set_sig_bytes(r.png, 8);
     png_read_info(r.png, r.info);
@@ -467,7 +475,7 @@ Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkS
     hf.n = int(w);
     const size_t rowBytes = png_get_rowbytes(r.png, r.info);
     data.resize(rowBytes * h);
-    std::vector<png_bytep> rows(h);
+    rows.resize(h);
     for (png_uint_32 j = 0; j < h; ++j) rows[j] = data.data() + j * rowBytes;
     png_read_image(r.png, rows.data());
     hf.heights.resize(size_t(w) * h);

@@ -229,6 +229,20 @@ TEST(Diff, BadInputExitsThree) {
               std::string::npos)
         << r.err;
 
+    // Found by fuzzing: numbers where integers belong were converted with undefined
+    // behaviour, and a number beyond a double escaped as an uncaught exception.
+    for (const auto& [text, words] : std::vector<std::pair<std::string, std::string>>{
+             {"{\"format\": \"shadowcull-results\", \"version\": 1e308}", "'version' must be an integer, not 1e+308"},
+             {"{\"format\": \"shadowcull-results\", \"version\": 1, \"lights\": [], \"chunks\": [{\"chunk\": \"c\", "
+              "\"objects\": [{\"element\": 0, \"kind\": \"model\", \"mask\": 4294967296, \"groups\": []}]}]}",
+              "'mask' 4294967296 is out of range"},
+             {"{\"format\": \"shadowcull-results\", \"version\": 1e400}", "malformed JSON"}}) {
+        writeText(dir / "numbers.json", text);
+        r = diff(good, dir / "numbers.json");
+        EXPECT_EQ(r.code, cli::kExitBadInput) << text;
+        EXPECT_NE(r.err.find(words), std::string::npos) << r.err;
+    }
+
     r = diff(dir / "missing.json", good);
     EXPECT_EQ(r.code, cli::kExitBadInput);
     EXPECT_NE(r.err.find("missing.json: cannot open results file"), std::string::npos) << r.err;
