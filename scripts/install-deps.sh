@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs the Debian 12 packages shadowcull needs to build and test. Idempotent.
+# Installs the Debian 12 packages shadowcull needs to build and test, and any packages
+# named as arguments (scripts/fuzz.sh: clang). Idempotent.
 set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config
@@ -7,6 +8,7 @@ packages=(
   libosmesa6-dev mesa-common-dev
   nlohmann-json3-dev libcli11-dev
   googletest libgtest-dev libbenchmark-dev
+  "$@"
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -1,0 +1,257 @@
+#!/usr/bin/env python3
+"""Writes the seed corpus fuzz/corpus/<reader>/ (committed; run by hand when the formats
+change): small valid inputs from data/sample and a few made here (glTF/GLB, 16-bit PNG
+terrain, tiny spaces), each a few KB. Multi-file inputs are joined by the separator line of
+fuzz/fuzz_support.h. The results JSON seeds of `diff` come from real bakes of the tiny
+spaces, so the path of a built shadowcull is needed for them:
+
+    fuzz/make_seeds.py [build/bin/shadowcull]
+"""
+import base64
+import json
+import pathlib
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import zlib
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+SAMPLE = ROOT / "data" / "sample"
+CORPUS = ROOT / "fuzz" / "corpus"
+SEP = b"\n--- next file ---\n"  # kFuzzSeparator
+
+
+def join(*parts):
+    return SEP.join(p if isinstance(p, bytes) else p.encode() for p in parts)
+
+
+def sample(path):
+    return (SAMPLE / path).read_bytes()
+
+
+def png16(n, values):
+    """A 16-bit grey n x n PNG with the given row-major samples."""
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    raw = b"".join(b"\0" + b"".join(struct.pack(">H", values[j * n + i]) for i in range(n)) for j in range(n))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", n, n, 16, 0, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+
+def terrain_xml(png, lo, hi):
+    return f"<terrain>\n  <heights> {png} </heights>\n  <minHeight> {lo} </minHeight>\n  <maxHeight> {hi} </maxHeight>\n</terrain>\n"
+
+
+# ---------------------------------------------------------------------------------------
+# glTF
+
+class Gltf:
+    """One buffer, views, accessors, meshes and nodes, as tests/mesh_gltf_test.cpp builds them."""
+
+    def __init__(self):
+        self.bin = bytearray()
+        self.doc = {"asset": {"version": "2.0"}, "bufferViews": [], "accessors": [], "meshes": [], "nodes": []}
+
+    def view(self, data, stride=0):
+        while len(self.bin) % 4:
+            self.bin.append(0)
+        v = {"buffer": 0, "byteOffset": len(self.bin), "byteLength": len(data)}
+        if stride:
+            v["byteStride"] = stride
+        self.bin += data
+        self.doc["bufferViews"].append(v)
+        return len(self.doc["bufferViews"]) - 1
+
+    def accessor(self, view, component, count, kind):
+        self.doc["accessors"].append({"bufferView": view, "componentType": component, "count": count, "type": kind})
+        return len(self.doc["accessors"]) - 1
+
+    def positions(self, points):
+        return self.accessor(self.view(b"".join(struct.pack("<3f", *p) for p in points)), 5126, len(points), "VEC3")
+
+    def indices(self, ix, component=5125):
+        fmt = {5121: "<B", 5123: "<H", 5125: "<I"}[component]
+        return self.accessor(self.view(b"".join(struct.pack(fmt, i) for i in ix)), component, len(ix), "SCALAR")
+
+    def gltf(self, uri=None):
+        d = dict(self.doc)
+        d["buffers"] = [{"byteLength": len(self.bin),
+                         "uri": uri or "data:application/octet-stream;base64," + base64.b64encode(bytes(self.bin)).decode()}]
+        return json.dumps(d, indent=1).encode()
+
+    def glb(self):
+        d = dict(self.doc)
+        d["buffers"] = [{"byteLength": len(self.bin)}]
+        text = json.dumps(d).encode()
+        text += b" " * (-len(text) % 4)
+        data = bytes(self.bin) + b"\0" * (-len(self.bin) % 4)
+        body = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(data), 0x004E4942) + data
+        return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
+
+
+TRI = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+QUAD = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+
+
+def gltf_triangle():
+    g = Gltf()
+    g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": g.positions(TRI)}}]})
+    g.doc["nodes"].append({"mesh": 0, "translation": [1, 2, 3], "rotation": [0, 0.7071, 0, 0.7071], "scale": [2, 2, -2]})
+    g.doc["scenes"] = [{"nodes": [0]}]
+    return g
+
+
+def gltf_three_primitives():
+    g = Gltf()
+    tri, quad = g.positions(TRI), g.positions(QUAD)
+    g.doc["materials"] = [{"alphaMode": "MASK"}, {"doubleSided": True}]
+    g.doc["meshes"].append({"primitives": [
+        {"attributes": {"POSITION": tri}, "indices": g.indices([0, 1, 2], 5121), "material": 0},
+        {"attributes": {"POSITION": quad}, "indices": g.indices([0, 1, 2, 0, 2, 3], 5123), "material": 1}]})
+    g.doc["meshes"].append({"primitives": [
+        {"attributes": {"POSITION": quad}, "indices": g.indices([0, 1, 2, 3]), "mode": 5},
+        {"attributes": {"POSITION": quad}, "mode": 6}]})
+    g.doc["nodes"] = [{"mesh": 1, "children": [1]},
+                      {"mesh": 0, "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 5, 0, 0, 1]}]
+    g.doc["scenes"] = [{"nodes": [0]}]
+    g.doc["scene"] = 0
+    return g
+
+
+def gltf_strided():
+    g = Gltf()
+    data = b"".join(struct.pack("<3f", *p) + b"\0" * 4 for p in QUAD)  # 16-byte stride
+    pos = g.accessor(g.view(data, 16), 5126, 4, "VEC3")
+    g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": pos}, "indices": g.indices([0, 1, 2, 0, 2, 3])}]})
+    g.doc["nodes"].append({"mesh": 0})
+    return g
+
+
+# ---------------------------------------------------------------------------------------
+# Tiny spaces for the bake (and, baked, for diff)
+
+def space_xml(lights, extra=""):
+    return f"<space>\n  <chunkSize> 100 </chunkSize>\n  <neighbours> 1 </neighbours>\n{extra}{lights}</space>\n"
+
+
+SUN = "  <light> <name> sun </name> <type> directional </type> <direction> 0.3 -1 0.2 </direction> <bias> 0.05 </bias> </light>\n"
+LAMP = "  <light> <name> lamp </name> <type> point </type> <position> 52 4 50 </position> <range> 25 </range> </light>\n"
+TORCH = ("  <light> <name> torch </name> <type> spot </type> <position> 50 8 50 </position> <direction> 0 -1 0 </direction>"
+         " <range> 20 </range> <coneAngle> 30 </coneAngle> <slopeBias> 0.1 </slopeBias> </light>\n")
+
+
+def model(resource, x, y, z, uuid, extra=""):
+    return (f"  <model>\n    <resource> {resource} </resource>\n    <uuid> {uuid} </uuid>\n    <transform>\n"
+            f"      <row0> 1 0 0 </row0>\n      <row1> 0 1 0 </row1>\n      <row2> 0 0 1 </row2>\n"
+            f"      <row3> {x} {y} {z} </row3>\n    </transform>\n{extra}  </model>\n")
+
+
+def chunk(*objects):
+    return "<chunk>\n" + "".join(objects) + "</chunk>\n"
+
+
+TERRAIN = "  <terrain>\n    <resource> t.terrain </resource>\n  </terrain>\n"
+FLAT3 = png16(3, [0, 1000, 0, 2000, 3000, 1000, 0, 500, 0])
+
+
+def bakes():
+    # No MTL in a bake's input: the crate without its mtllib and usemtl lines (one group).
+    crate = b"".join(l for l in sample("models/crate.obj").splitlines(True) if not l.startswith((b"mtllib", b"usemtl")))
+    return {
+        "cube_on_terrain": [space_xml(SUN + LAMP), chunk(model("m.obj", 50, 0.2, 50, "A-1"), TERRAIN),
+                            chunk(model("m.obj", 10, 3, 40, "B-1")), crate, terrain_xml("t.png", 0, 1), FLAT3],
+        "spot_noncaster": [space_xml(TORCH, "  <terrainTolerance> 0.5 </terrainTolerance>\n"),
+                           chunk(model("m.obj", 50, 0, 50, "A-1", "    <castsShadow> false </castsShadow>\n"),
+                                 model("m.obj", 52, 2, 50, "A-2"), TERRAIN),
+                           "<chunk/>\n", crate, terrain_xml("t.png", -1, 2), FLAT3],
+        "floating_skipped": [space_xml(SUN, '  <neighbours left="0" right="1" top="0" bottom="0"/>\n'),
+                             chunk(model("m.obj", 40, 20, 50, "A-1"), model("missing.obj", 45, 20, 50, "A-2")),
+                             chunk(model("m.obj", 5, 20, 50, "B-1")), crate],
+    }
+
+
+def results(shadowcull, parts, tmp, name):
+    space = tmp / name
+    space.mkdir()
+    for file, part in zip(["space.xml", "00000000o.chunk", "00010000o.chunk", "m.obj", "t.terrain", "t.png"], parts):
+        (space / file).write_bytes(part if isinstance(part, bytes) else part.encode())
+    out = tmp / (name + ".json")
+    subprocess.run([shadowcull, "bake", str(space), "--dry-run", "--quiet", "--threads", "1", "--samples", "16",
+                    "--stages", "raycast,geometry", "--results", str(out)], check=False)
+    # Compact: the same content in fewer bytes for the fuzzer to work through.
+    return json.dumps(json.loads(out.read_bytes().replace(str(tmp).encode(), b"SPACE")), separators=(",", ":")).encode()
+
+
+# ---------------------------------------------------------------------------------------
+
+def main():
+    seeds = {"space": {}, "chunk": {}, "model": {}, "obj": {}, "gltf": {}, "terrain": {}, "diff": {}, "bake": {}}
+
+    seeds["space"]["sample.xml"] = sample("space.xml")
+    seeds["space"]["sides_root.xml"] = space_xml(
+        TORCH + LAMP, '  <neighbours left="2" right="0" top="1" bottom="3"/>\n  <resourceRoot> res </resourceRoot>\n'
+        "  <terrainTolerance> 0.25 </terrainTolerance>\n  <unknown> kept </unknown>\n")
+    seeds["space"]["empty.xml"] = "<space/>\n"
+
+    for name in ["00000000o.chunk", "ffff0000o.chunk"]:
+        seeds["chunk"]["sample_" + name] = sample(name)
+    small = chunk(model("m.obj", 1.5, -2, 3e-3, "U-1", "    <castsShadow> 0 </castsShadow>\n"
+                        "    <shadow> 3\n      <RenderSet>\n        <Geometry>\n          <PrimitiveGroup> 3 </PrimitiveGroup>\n"
+                        "        </Geometry>\n      </RenderSet>\n    </shadow>\n    <shadow> 1 </shadow>\n"),
+                  "  <!-- comment -->\n  <other><model> nested </model></other>\n", TERRAIN)
+    seeds["chunk"]["shadows.chunk"] = small
+    seeds["chunk"]["crlf.chunk"] = small.replace("\n", "\r\n")
+
+    for name in ["crate", "sign", "tree", "house", "rock_a"]:
+        seeds["obj"][name + ".obj"] = join(sample(f"models/{name}.obj"), sample(f"models/{name}.mtl"))
+    seeds["obj"]["refs.obj"] = join(
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0 1\nv 0 1 0 0.5 0.5 0.5\nvt 0 0\nvn 0 0 1\n"
+        "f 1 2 3\nusemtl a\nf -4/1/1 -3/1/1 -2//1 \\\n -1\ng g\ns off\nusemtl\nf 1/1 3/1 4/1\nusemtl b c\nf 2 3 4\n",
+        "newmtl a\nmap_d a.png\nnewmtl b c\nd 0.5\n")
+
+    seeds["model"]["sign.model"] = join(sample("models/sign.model").replace(b"sign.obj", b"m.obj"),
+                                        sample("models/sign.obj").replace(b"sign.mtl", b"m.mtl"), sample("models/sign.mtl"))
+    seeds["model"]["gltf.model"] = join(
+        '<model>\n  <visual> m.gltf </visual>\n  <primitiveGroup index="0" alphaTest="false" doubleSided="1"/>\n'
+        '  <primitiveGroup index="2" alphaTest="true"/>\n</model>\n', "", "", gltf_three_primitives().gltf())
+
+    seeds["gltf"]["triangle.gltf"] = gltf_triangle().gltf()
+    seeds["gltf"]["three_primitives.glb"] = gltf_three_primitives().glb()
+    external = gltf_three_primitives()
+    seeds["gltf"]["external.gltf"] = join(external.gltf("b.bin"), bytes(external.bin))
+    seeds["gltf"]["strided.glb"] = gltf_strided().glb()
+
+    seeds["terrain"]["small.terrain"] = join(terrain_xml("h.png", -10, 20), FLAT3)
+    seeds["terrain"]["flat2.terrain"] = join(terrain_xml("h.png", 5, 5), png16(2, [0, 0, 0, 0]))
+    seeds["terrain"]["sample.terrain"] = join(sample("terrain/00000000.terrain").replace(b"00000000.png", b"h.png"),
+                                              sample("terrain/00000000.png"))
+
+    for name, parts in bakes().items():
+        seeds["bake"][name] = join(*parts)
+
+    if len(sys.argv) > 1:
+        with tempfile.TemporaryDirectory() as t:
+            tmp = pathlib.Path(t)
+            b = bakes()
+            a = results(sys.argv[1], b["cube_on_terrain"], tmp, "a")
+            moved = list(b["cube_on_terrain"])
+            moved[0] = moved[0].replace("52 4 50", "40 4 45").replace("0.3 -1 0.2", "-0.2 -1 0.1")
+            seeds["diff"]["changed.json"] = join(a, results(sys.argv[1], moved, tmp, "b"))
+            seeds["diff"]["skipped_same.json"] = results(sys.argv[1], b["floating_skipped"], tmp, "c")
+    else:
+        print("no shadowcull given: diff seeds left as they are", file=sys.stderr)
+
+    for reader, files in seeds.items():
+        if not files:
+            continue
+        d = CORPUS / reader
+        shutil.rmtree(d, ignore_errors=True)
+        d.mkdir(parents=True)
+        for name, data in files.items():
+            (d / name).write_bytes(data if isinstance(data, bytes) else data.encode())
+
+
+if __name__ == "__main__":
+    main()
