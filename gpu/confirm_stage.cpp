@@ -58,6 +58,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "core/float_mode.h"
 #include "core/light_reach.h"
 #include "gpu/conservative.h"
 #include "gpu/gl_api.h"
@@ -108,7 +109,7 @@ flat in vec4 fPlane;   // x0, y0, s0, a
 flat in vec4 fPlane2;  // b, zmin, zmax, planeValid
 flat in vec4 fMisc;    // dilate, margin, kind
 flat in uint fId;
-uniform int uMode;          // 0 occluder sheet, 1 receivers, 2 caster query
+uniform int uMode;          // 0 occluder sheet, 1 receivers, 2 caster query (count and record), 3 record only
 uniform bool uPerspective;  // s = 1/z (else s = depth)
 uniform float uDepthEps;    // metres, absolute depth margin
 uniform float uSizeMax;     // view size in pixels (bounds float rounding of coordinates)
@@ -120,6 +121,10 @@ layout(binding = 0) uniform sampler2D uOcc;
 layout(binding = 1) uniform sampler2D uRecv;
 layout(std430, binding = 0) buffer Counts { uint counts[]; };
 layout(std430, binding = 1) buffer Records { uvec4 records[]; };
+// Per query: which passed pixels to record (threshold on a hash of the pixel; 0xffffffff
+// all, 0 none), the first free record, the records still free, and the fragments offered
+// (pixels under the threshold; all of them are recorded when they fit).
+layout(std430, binding = 2) buffer Slots { uvec4 slots[]; };
 layout(location = 0) out vec4 oValue;
 const float BIG = 1e30;
 
@@ -172,6 +177,17 @@ void depthBounds(vec2 c, float h, out float zlo, out float zhi) {
     zhi += uDepthEps + 1e-6 * abs(zhi);
 }
 
+// A fixed hash of the pixel (view, x, y): which pixels are recorded depends on the pixels
+// alone, never on the order in which fragments run.
+uint mix32(uint x) {
+    x ^= x >> 16; x *= 0x7feb352du; x ^= x >> 15; x *= 0x846ca68bu; x ^= x >> 16;
+    return x;
+}
+bool recorded(ivec2 pix) {
+    uint t = slots[fId].x;
+    return t == 0xffffffffu || mix32(uint(pix.x) ^ mix32(uint(pix.y) ^ mix32(uView))) < t;
+}
+
 void main() {
     vec2 c = gl_FragCoord.xy;
     float m = fMisc.y;
@@ -206,10 +222,14 @@ void main() {
         float rec = texelFetch(uRecv, pix, 0).r;
         bool lit = zlo <= occ;
         bool behind = uAnyReceiver || rec > zlo + uBias;
-        if (lit) atomicAdd(counts[2u * fId], 1u);
+        if (uMode == 2 && lit) atomicAdd(counts[2u * fId], 1u);
         if (lit && behind) {
-            uint k = atomicAdd(counts[2u * fId + 1u], 1u);
-            if (k < uRecordCap) records[fId * uRecordCap + k] = uvec4(uint(pix.x), uint(pix.y), floatBitsToUint(zlo), uView);
+            if (uMode == 2) atomicAdd(counts[2u * fId + 1u], 1u);
+            if (recorded(pix)) {
+                uint k = atomicAdd(slots[fId].w, 1u);
+                if (k < slots[fId].z)
+                    records[fId * uRecordCap + slots[fId].y + k] = uvec4(uint(pix.x), uint(pix.y), floatBitsToUint(zlo), uView);
+            }
         }
     }
 }
@@ -443,7 +463,7 @@ struct GpuConfirmStage::Gl {
     GLuint raster = 0, resolve = 0, clear = 0;
     RenderTarget work, occ, recv;
     GLuint vao = 0, vbo = 0, rectVao = 0, rectVbo = 0;
-    GLuint ssbo[2] = {0, 0};
+    GLuint ssbo[3] = {0, 0, 0};  // counts, records, slots (see kRasterFs)
     GLint64 maxStorageBlock = 0;  // bytes, GL_MAX_SHADER_STORAGE_BLOCK_SIZE
 };
 
@@ -514,7 +534,7 @@ Status GpuConfirmStage::ensureGl() {
         gl.VertexAttribDivisor(k, 1);
     }
     gl.BindVertexArray(0);
-    gl.GenBuffers(2, g->ssbo);
+    gl.GenBuffers(3, g->ssbo);
     GLint maxBlock = 0;
     gl.GetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &maxBlock);
     g->maxStorageBlock = maxBlock > 0 ? maxBlock : (16 << 20);
@@ -535,6 +555,10 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
             if (ov.decisions[k].verdict == Verdict::Undecided) lights[k % size_t(cv.lightCount)] = true;
     }
     if (std::none_of(lights.begin(), lights.end(), [](bool b) { return b; })) return Status::ok();
+    // The pieces are computed on this thread and on TBB's workers, which Embree's builds
+    // leave with flush-to-zero and denormals-are-zero: one mode everywhere, so that the GL
+    // input does not depend on which thread made which piece (nor on the thread count).
+    const FloatModeScope ieee(FloatModeScope::Underflow::Gradual);
     if (Status s = ensureGl(); !s) return s;
     WindowTriangles tris(w);
     // The window slid: keep the edges of the meshes still loaded, drop the others (the
@@ -675,6 +699,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     // (in parallel over objects; the order of sheets and receivers is the objects' order).
     std::vector<ObjectSurfaces> surfaces(near.size());
     tbb::parallel_for(size_t(0), near.size(), [&](size_t i) {
+        const FloatModeScope taskMode(FloatModeScope::Underflow::Gradual);  // as run() (see there)
         const uint32_t k = near[i];
         const WindowObject& o = w.objects[k];
         const Mesh& mesh = *o.mesh;
@@ -771,6 +796,49 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(Q * cap * 16), nullptr, GL_DYNAMIC_COPY);
         gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
     }
+    // Which passed pixels are recorded (Slots in kRasterFs). The shader's atomics hand out
+    // record slots in the order the rasteriser's threads run the fragments, so when a
+    // query's fragments do not all fit, "the first ones" would differ from run to run (and
+    // with them the dense witness search and the results JSON). Instead, per view, every
+    // passed pixel is recorded while they fit in the query's free records; when they do
+    // not, the records are written again for the pixels whose hash is under a threshold,
+    // lowered until they fit: a set that depends on the pixels alone.
+    struct Slot {
+        uint32_t threshold, base, room, offered;
+    };
+    static_assert(sizeof(Slot) == 16, "one uvec4 per query");
+    constexpr uint32_t kAllPixels = 0xffffffffu;
+    std::vector<Slot> slots(Q);
+    std::vector<uint32_t> recordsWritten(Q, 0);  // per query, over the views so far
+    auto uploadSlots = [&] {
+        gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, gl_->ssbo[2]);
+        gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(Q * sizeof(Slot)), slots.data(), GL_DYNAMIC_COPY);
+        gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    };
+    // After a caster pass: the queries whose offered pixels fit are done for this view;
+    // the others get a lower threshold. False when every query is done.
+    auto settleSlots = [&] {
+        gl.MemoryBarrier(GL_ALL_BARRIER_BITS);
+        gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, gl_->ssbo[2]);
+        gl.GetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(Q * sizeof(Slot)), slots.data());
+        gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+        bool again = false;
+        for (size_t q = 0; q < Q; ++q) {
+            Slot& sl = slots[q];
+            if (sl.offered <= sl.room) {
+                recordsWritten[q] += sl.offered;
+                sl = {0, recordsWritten[q], 0, 0};  // nothing more in this view
+            } else {
+                // Aim at three quarters of the room (a pixel's fragments come and go
+                // together); the threshold strictly falls, so this ends.
+                const uint64_t span = sl.threshold == kAllPixels ? (uint64_t(1) << 32) : uint64_t(sl.threshold);
+                sl.threshold = uint32_t(span * 3 * sl.room / (4 * uint64_t(sl.offered)));
+                sl.offered = 0;
+                again = true;
+            }
+        }
+        return again;
+    };
 
     for (size_t vi = 0; vi < views.size(); ++vi) {
         const LightView& view = views[vi];
@@ -789,6 +857,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         // fragments can reach, and its receivers' pieces.
         std::vector<ObjectPieces> pieces(near.size());
         tbb::parallel_for(size_t(0), near.size(), [&](size_t i) {
+            const FloatModeScope taskMode(FloatModeScope::Underflow::Gradual);  // as run()
             ObjectPieces& out = pieces[i];
             const std::array<glm::dvec3, 8> corners = boxCorners(tris.objects[near[i]].lsBounds);
             if (vp.misses(corners.data(), 8, dilatePx)) return;  // nothing of it reaches this view's casters
@@ -948,7 +1017,11 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.Uniform1i(uMode, 1);
         gl.BindVertexArray(gl_->vao);
         drawPieces(recvFirst, castFirst - recvFirst);
-        // 3. Casters: count lit fragments and those with a receiver behind.
+        // 3. Casters: count lit fragments and those with a receiver behind, and record the
+        // pixels that passed (see Slot above).
+        for (size_t q = 0; q < Q; ++q)
+            slots[q] = {recordsWritten[q] < cap ? kAllPixels : 0u, recordsWritten[q], cap - recordsWritten[q], 0};
+        uploadSlots();
         gl.Disable(GL_BLEND);
         gl.BlendEquation(GL_FUNC_ADD);
         gl.BindFramebuffer(GL_FRAMEBUFFER, gl_->work.fbo);
@@ -960,7 +1033,14 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.BindTexture(GL_TEXTURE_2D, gl_->recv.colour[0]);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gl_->ssbo[0]);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gl_->ssbo[1]);
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, gl_->ssbo[2]);
         drawPieces(castFirst, end - castFirst);
+        gl.Uniform1i(uMode, 3);  // again if needed: records only, the counts are complete
+        while (settleSlots()) {
+            uploadSlots();
+            drawPieces(castFirst, end - castFirst);
+            ++stats.gpuPasses;
+        }
         gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
         gl.Disable(GL_SCISSOR_TEST);
         gl.MemoryBarrier(GL_ALL_BARRIER_BITS);
@@ -1001,7 +1081,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         GroupPixels& gp = queries[q];
         gp.litSamples = counts[2 * q];
         gp.passedSamples = counts[2 * q + 1];
-        const uint32_t n = std::min(cap, uint32_t(gp.passedSamples));
+        const uint32_t n = recordsWritten[q];
         std::map<std::tuple<int, int, int>, float> nearest;  // (view, px, py) -> nearest depth
         for (uint32_t k = 0; k < n; ++k) {
             const uint32_t* r = &records[(q * cap + k) * 4];

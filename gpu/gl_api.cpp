@@ -1,6 +1,78 @@
 #include "gpu/gl_api.h"
 
+#include <atomic>
+#include <mutex>
+
 namespace shadowcull::gpu {
+
+namespace {
+
+// The object counts behind liveGlObjects(): the entry points that make and delete objects
+// are wrapped by functions that count, then call the library's. OSMesa hands out the same
+// entry points for every context (they dispatch on the current one), so one table of the
+// library's functions serves every GlApi.
+enum ObjectKind { kBuffers, kVertexArrays, kTextures, kFramebuffers, kRenderbuffers, kQueries, kShaders, kPrograms, kKinds };
+std::atomic<int64_t> liveObjects[kKinds];
+GlApi library;  // the library's entry points of the wrapped functions (set once)
+std::once_flag libraryLoaded;
+
+int64_t named(GLsizei n, const GLuint* ids) {
+    int64_t k = 0;
+    for (GLsizei i = 0; i < n; ++i) k += ids[i] != 0;
+    return k;
+}
+
+#define SHADOWCULL_GL_COUNTED_PAIR(kind, Gen, Delete)                                   \
+    void APIENTRY counted##Gen(GLsizei n, GLuint* ids) {                                \
+        library.Gen(n, ids);                                                            \
+        liveObjects[kind] += named(n, ids);                                             \
+    }                                                                                   \
+    void APIENTRY counted##Delete(GLsizei n, const GLuint* ids) {                       \
+        liveObjects[kind] -= named(n, ids);                                             \
+        library.Delete(n, ids);                                                         \
+    }
+SHADOWCULL_GL_COUNTED_PAIR(kBuffers, GenBuffers, DeleteBuffers)
+SHADOWCULL_GL_COUNTED_PAIR(kVertexArrays, GenVertexArrays, DeleteVertexArrays)
+SHADOWCULL_GL_COUNTED_PAIR(kTextures, GenTextures, DeleteTextures)
+SHADOWCULL_GL_COUNTED_PAIR(kFramebuffers, GenFramebuffers, DeleteFramebuffers)
+SHADOWCULL_GL_COUNTED_PAIR(kRenderbuffers, GenRenderbuffers, DeleteRenderbuffers)
+SHADOWCULL_GL_COUNTED_PAIR(kQueries, GenQueries, DeleteQueries)
+#undef SHADOWCULL_GL_COUNTED_PAIR
+
+GLuint APIENTRY countedCreateShader(GLenum type) {
+    const GLuint s = library.CreateShader(type);
+    liveObjects[kShaders] += s != 0;
+    return s;
+}
+void APIENTRY countedDeleteShader(GLuint s) {
+    liveObjects[kShaders] -= s != 0;
+    library.DeleteShader(s);
+}
+GLuint APIENTRY countedCreateProgram() {
+    const GLuint p = library.CreateProgram();
+    liveObjects[kPrograms] += p != 0;
+    return p;
+}
+void APIENTRY countedDeleteProgram(GLuint p) {
+    liveObjects[kPrograms] -= p != 0;
+    library.DeleteProgram(p);
+}
+
+#define SHADOWCULL_GL_COUNTED(X)                                                                              \
+    X(GenBuffers) X(DeleteBuffers) X(GenVertexArrays) X(DeleteVertexArrays) X(GenTextures) X(DeleteTextures) \
+    X(GenFramebuffers) X(DeleteFramebuffers) X(GenRenderbuffers) X(DeleteRenderbuffers) X(GenQueries)       \
+    X(DeleteQueries) X(CreateShader) X(DeleteShader) X(CreateProgram) X(DeleteProgram)
+
+}  // namespace
+
+GlObjectCounts liveGlObjects() {
+    GlObjectCounts c;
+    c.buffers = liveObjects[kBuffers], c.vertexArrays = liveObjects[kVertexArrays];
+    c.textures = liveObjects[kTextures], c.framebuffers = liveObjects[kFramebuffers];
+    c.renderbuffers = liveObjects[kRenderbuffers], c.queries = liveObjects[kQueries];
+    c.shaders = liveObjects[kShaders], c.programs = liveObjects[kPrograms];
+    return c;
+}
 
 Status GlApi::load(const GlContext& context) {
 #define SHADOWCULL_GL_LOAD(type, name)                                                           \
@@ -8,6 +80,22 @@ Status GlApi::load(const GlContext& context) {
     if (!name) return makeError(ErrorKind::Internal, "", 0, "OpenGL entry point gl" #name " not found");
     SHADOWCULL_GL_FUNCTIONS(SHADOWCULL_GL_LOAD)
 #undef SHADOWCULL_GL_LOAD
+    // Count the objects made and deleted (see liveGlObjects), when this context's entry
+    // points are the library's first ones (always, with one OSMesa).
+    std::call_once(libraryLoaded, [&] {
+#define SHADOWCULL_GL_KEEP(name) library.name = name;
+        SHADOWCULL_GL_COUNTED(SHADOWCULL_GL_KEEP)
+#undef SHADOWCULL_GL_KEEP
+    });
+    bool same = true;
+#define SHADOWCULL_GL_SAME(name) same &= library.name == name;
+    SHADOWCULL_GL_COUNTED(SHADOWCULL_GL_SAME)
+#undef SHADOWCULL_GL_SAME
+    if (same) {
+#define SHADOWCULL_GL_WRAP(name) name = &counted##name;
+        SHADOWCULL_GL_COUNTED(SHADOWCULL_GL_WRAP)
+#undef SHADOWCULL_GL_WRAP
+    }
     return Status::ok();
 }
 

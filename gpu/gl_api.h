@@ -129,6 +129,20 @@ Expected<RenderTarget> makeRenderTarget(const GlApi& gl, int width, int height, 
                                         bool depthStencil);
 void destroyRenderTarget(const GlApi& gl, RenderTarget& target);
 
+// OpenGL objects made through a GlApi (Gen*/Create*) and not deleted since (Delete*), over
+// every context of the process: what a pass leaves behind. Objects freed by destroying
+// their context are not subtracted, so compare counts taken while the same contexts live
+// (e.g. after K and after 2K chunks of one bake: a pass that forgets to delete what it
+// made per chunk shows up as growth). Names 0 are not counted.
+struct GlObjectCounts {
+    int64_t buffers = 0, vertexArrays = 0, textures = 0, framebuffers = 0, renderbuffers = 0, queries = 0,
+            shaders = 0, programs = 0;
+    int64_t total() const {
+        return buffers + vertexArrays + textures + framebuffers + renderbuffers + queries + shaders + programs;
+    }
+};
+GlObjectCounts liveGlObjects();
+
 // Reads a colour attachment of a float target (one float per pixel, channel `channel`
 // of `channels`), rows bottom to top.
 std::vector<float> readFloatPixels(const GlApi& gl, const RenderTarget& target, int attachment, int channels, int channel);
