@@ -11,23 +11,15 @@
 #include "cli/check.h"
 #include "gpu/gl_context.h"
 #include "tests/support/space_builder.h"
+#include "tests/support/gl_available.h"
 #include "tests/test_files.h"
 
 using namespace shadowcull;
 using namespace shadowcull::testing;
 namespace fs = std::filesystem;
 
-namespace {
-
-bool haveGl() {
-    auto ctx = gpu::createOffscreenContext(16, 16);
-    return bool(ctx);
-}
-
-}  // namespace
-
 TEST(Check, FlagsTheRodTheGpuMethodMissesAtLowResolution) {
-    if (!haveGl()) GTEST_SKIP() << "no OpenGL context could be made (OSMesa); the GPU method cannot run here";
+    REQUIRE_GL();
     SpaceBuilder b = thinRod();
     fs::path dir = freshTestDir();
     b.write((dir / "space").string());
@@ -58,7 +50,7 @@ TEST(Check, FlagsTheRodTheGpuMethodMissesAtLowResolution) {
 }
 
 TEST(Check, RenderWritesTheLightsView) {
-    if (!haveGl()) GTEST_SKIP() << "no OpenGL context could be made (OSMesa); render cannot run here";
+    REQUIRE_GL();
     SpaceBuilder b = cubeOnTerrain();
     fs::path dir = freshTestDir();
     b.write((dir / "space").string());
@@ -76,7 +68,7 @@ TEST(Check, RenderWritesTheLightsView) {
 // A light view larger than the GL limits is refused up front with a message, not drawn
 // half: rangeAndCone's light 1 is a point lamp, rendered as six 8192 px tiles (3 x 2).
 TEST(Check, RenderRefusesAViewBeyondTheGlLimit) {
-    if (!haveGl()) GTEST_SKIP() << "no OpenGL context could be made (OSMesa); render cannot run here";
+    REQUIRE_GL();
     SpaceBuilder b = rangeAndCone();
     fs::path dir = freshTestDir();
     b.write((dir / "space").string());

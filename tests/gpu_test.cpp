@@ -36,6 +36,7 @@
 #include "gpu/render.h"
 #include "raycast/raycast_stage.h"
 #include "tests/support/bake_lookup.h"
+#include "tests/support/gl_available.h"
 #include "tests/support/sample_space.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
@@ -45,23 +46,6 @@ using namespace shadowcull::testing;
 namespace fs = std::filesystem;
 
 namespace {
-
-// --- GL availability -----------------------------------------------------------------
-
-const std::string& glUnavailableReason() {
-    static const std::string reason = [] {
-        Expected<std::unique_ptr<gpu::GlContext>> ctx = gpu::createOffscreenContext(4, 4);
-        return ctx ? std::string() : ctx.error().what();
-    }();
-    return reason;
-}
-
-#define REQUIRE_GL()                                                                                      \
-    do {                                                                                                  \
-        if (!glUnavailableReason().empty())                                                               \
-            GTEST_SKIP() << "no offscreen OpenGL context can be made here (" << glUnavailableReason()     \
-                         << "); install libosmesa6 (Mesa llvmpipe) to run the GPU tests";                 \
-    } while (0)
 
 // --- Loading a written space into a bake window ----------------------------------------
 
