@@ -3,8 +3,10 @@
 // crashed, hung, or wrote a wrong mask before it was fixed.
 
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <functional>
 #include <string>
 #include <vector>
@@ -297,4 +299,49 @@ TEST(HostileInput, ReadOnlySymlinkedAndForeignOwnedChunkFiles) {
         EXPECT_EQ(st.st_gid, 23456u);
         EXPECT_NE(readText(foreign).find("<shadow>"), std::string::npos);
     }
+}
+
+// The same as a user who is not root (run through setpriv when the tests run as root): a
+// chunk file this user may not write, or whose owner this user could not keep, is not
+// replaced unless --force-write (a rename would give it to this user).
+TEST(HostileInput, AsAnotherUserFilesItCannotKeepAreRefused) {
+    if (::geteuid() != 0 || std::system("command -v setpriv > /dev/null") != 0)
+        GTEST_SKIP() << "needs root and setpriv to run the bake as another user";
+    const fs::path dir = freshTestDir();
+    const fs::path space = copySample(dir);
+    const uid_t nobody = 65534;
+    for (const auto& e : fs::recursive_directory_iterator(space)) ASSERT_EQ(::lchown(e.path().c_str(), nobody, nobody), 0);
+    ASSERT_EQ(::chown(space.c_str(), nobody, nobody), 0);
+    const fs::path foreign = space / "00000000o.chunk", locked = space / "00010000o.chunk";
+    ASSERT_EQ(::chown(foreign.c_str(), 0, 0), 0);
+    ASSERT_EQ(::chmod(foreign.c_str(), 0666), 0);  // writable, but owned by root
+    ASSERT_EQ(::chown(locked.c_str(), 0, 0), 0);
+    ASSERT_EQ(::chmod(locked.c_str(), 0644), 0);  // not writable by nobody
+    // The checkout or the scratch directory may be out of another user's reach (e.g. under
+    // a 0700 home): then there is nothing to test here.
+    const std::string reach = "setpriv --reuid=65534 --regid=65534 --clear-groups sh -c \"test -x '" +
+                              std::string(SHADOWCULL_BIN) + "' && test -w '" + space.string() + "'\"";
+    if (std::system(reach.c_str()) != 0) GTEST_SKIP() << "the binary or the scratch space is out of another user's reach";
+    const std::string bake = "bake '" + space.string() + "' --quiet --stages raycast";
+    auto asNobody = [&](const std::string& args) {
+        const std::string cmd = "setpriv --reuid=65534 --regid=65534 --clear-groups " + std::string(SHADOWCULL_BIN) +
+                                " " + args + " > '" + (dir / "out").string() + "' 2> '" + (dir / "err").string() + "'";
+        const int rc = std::system(cmd.c_str());
+        return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+    };
+    EXPECT_EQ(asNobody(bake), 1) << readText(dir / "err");
+    const std::string err = readText(dir / "err");
+    EXPECT_NE(err.find("00000000o.chunk: the chunk file is owned by another user (uid 0)"), std::string::npos) << err;
+    EXPECT_NE(err.find("00010000o.chunk: the chunk file is not writable by this user"), std::string::npos) << err;
+    EXPECT_EQ(readText(foreign), readText(kSample / "00000000o.chunk"));
+    EXPECT_EQ(readText(locked), readText(kSample / "00010000o.chunk"));
+    EXPECT_NE(readText(space / "00000001o.chunk").find("<shadow>"), std::string::npos) << "the others are baked";
+
+    EXPECT_EQ(asNobody(bake + " --force-write"), 0) << readText(dir / "err");
+    EXPECT_NE(readText(foreign).find("<shadow>"), std::string::npos);
+    EXPECT_NE(readText(locked).find("<shadow>"), std::string::npos);
+    struct stat st {};
+    ASSERT_EQ(::stat(foreign.c_str(), &st), 0);
+    EXPECT_EQ(st.st_uid, nobody) << "forced: the replacement is this user's";
+    EXPECT_EQ(st.st_mode & 07777, 0666u);
 }
