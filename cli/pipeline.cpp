@@ -355,6 +355,10 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
                                "; not baked (--force-write replaces it anyway)");
                 continue;
             }
+            // A symlinked chunk is staged beside its target, which may lie outside the
+            // output directory: clear a temporary a killed bake left there too.
+            if (std::error_code tec; fs::is_regular_file(fs::symlink_status(tempPathFor(target), tec)))
+                fs::remove(tempPathFor(target), tec);
             writable.push_back(c);
         }
         targets = std::move(writable);

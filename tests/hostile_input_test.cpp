@@ -282,7 +282,9 @@ TEST(HostileInput, ReadOnlySymlinkedAndForeignOwnedChunkFiles) {
     fs::copy_file(kSample / "00010000o.chunk", real);
     fs::remove(space / "00010000o.chunk");
     fs::create_symlink(real, space / "00010000o.chunk");
+    writeText(dir / "elsewhere" / ".real.chunk.shadowcull-tmp", "left by a killed bake");
     EXPECT_EQ(runCli(bake, dir / "out", dir / "err"), 0) << readText(dir / "err");
+    EXPECT_FALSE(fs::exists(dir / "elsewhere" / ".real.chunk.shadowcull-tmp")) << "cleared beside the target too";
     EXPECT_TRUE(fs::is_symlink(space / "00010000o.chunk"));
     EXPECT_NE(readText(real).find("<shadow>"), std::string::npos);
     EXPECT_FALSE(fs::exists(space / ".00010000o.chunk.shadowcull-tmp"));
