@@ -6,6 +6,7 @@
 
 #include "geometry/geometry_stage.h"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -39,17 +40,29 @@ bool overlaps(const Aabb& a, const Aabb& b) {
              a.min.z > b.max.z);
 }
 
-// Receivers bucketed by the x/z cells their boxes touch.
+// Receivers bucketed by the x/z cells their boxes touch. A broad phase only: it never
+// drops a receiver whose box overlaps the query.
 class ReceiverGrid {
 public:
+    // At most this many cells (a window holding a mesh 65 km wide made 16 M cells of the
+    // usual size, and a minute of bucketing), and a receiver that would touch more than
+    // kMaxCellsPerReceiver cells is kept in a list of its own, visited by every query.
+    static constexpr double kMaxCells = 1 << 20;
+    static constexpr int kMaxCellsPerReceiver = 1024;
+
     ReceiverGrid(const Aabb& bounds, double cellSize, const std::vector<Receiver>& receivers) : receivers_(receivers) {
         origin_ = glm::dvec2(bounds.min.x, bounds.min.z);
-        cell_ = cellSize;
-        nx_ = std::clamp(int(std::ceil((bounds.max.x - bounds.min.x) / cell_)) + 1, 1, 4096);
-        nz_ = std::clamp(int(std::ceil((bounds.max.z - bounds.min.z) / cell_)) + 1, 1, 4096);
+        const double w = std::max(bounds.max.x - bounds.min.x, 0.0), d = std::max(bounds.max.z - bounds.min.z, 0.0);
+        cell_ = std::max({cellSize, std::sqrt(w * d / kMaxCells), w / 4095.0, d / 4095.0});
+        nx_ = std::clamp(int(std::ceil(w / cell_)) + 1, 1, 4096);
+        nz_ = std::clamp(int(std::ceil(d / cell_)) + 1, 1, 4096);
         cells_.resize(size_t(nx_) * size_t(nz_));
         for (uint32_t k = 0; k < receivers.size(); ++k) {
             auto [i0, j0, i1, j1] = range(receivers[k].box);
+            if (int64_t(i1 - i0 + 1) * int64_t(j1 - j0 + 1) > kMaxCellsPerReceiver) {
+                large_.push_back(k);
+                continue;
+            }
             for (int j = j0; j <= j1; ++j)
                 for (int i = i0; i <= i1; ++i) cells_[size_t(j) * size_t(nx_) + size_t(i)].push_back(k);
         }
@@ -58,16 +71,18 @@ public:
     // Calls f(index) once for every receiver whose box overlaps `box`.
     template <class F>
     void forEachOverlapping(const Aabb& box, std::vector<uint32_t>& stamp, uint32_t mark, F f) const {
+        auto visit = [&](uint32_t k) {
+            if (stamp[k] == mark) return false;
+            stamp[k] = mark;
+            return overlaps(receivers_[k].box, box) && f(k);
+        };
         auto [i0, j0, i1, j1] = range(box);
         for (int j = j0; j <= j1; ++j)
             for (int i = i0; i <= i1; ++i)
-                for (uint32_t k : cells_[size_t(j) * size_t(nx_) + size_t(i)]) {
-                    if (stamp[k] == mark) continue;
-                    stamp[k] = mark;
-                    const Aabb& b = receivers_[k].box;
-                    if (!overlaps(b, box)) continue;
-                    if (f(k)) return;
-                }
+                for (uint32_t k : cells_[size_t(j) * size_t(nx_) + size_t(i)])
+                    if (visit(k)) return;
+        for (uint32_t k : large_)
+            if (visit(k)) return;
     }
 
 private:
@@ -81,6 +96,7 @@ private:
     double cell_ = 1;
     int nx_ = 1, nz_ = 1;
     std::vector<std::vector<uint32_t>> cells_;
+    std::vector<uint32_t> large_;  // receivers touching more than kMaxCellsPerReceiver cells
 };
 
 Aabb triangleBox(const Triangle& t) {
