@@ -241,13 +241,15 @@ struct StagedChunk {
     std::string temp, target;
 };
 
+const char* const kEditedDuringBake =
+    "changed on disk while the bake ran (someone's edit?); not written, so the edit is kept: bake it again";
+
 // Why `source` must not be replaced now: it no longer holds the bytes the bake read (an
 // edit made while the bake ran). Empty when it still does.
 std::string changedSince(const std::string& source, uint64_t hash) {
     Expected<std::string> now = readRegularFile(source, "chunk file", ErrorKind::Io);
     if (!now) return "cannot be read again (" + now.error().message + ")";
-    if (Hasher().str(*now).value() != hash)
-        return "changed on disk while the bake ran (someone's edit?); not written, so the edit is kept: bake it again";
+    if (Hasher().str(*now).value() != hash) return kEditedDuringBake;
     return {};
 }
 
@@ -427,7 +429,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
             Expected<std::string> text = readRegularFile(cf.path, "chunk file", ErrorKind::Io);
             if (!text) return stopWith(text.error());
             if (Hasher().str(*text).value() != cf.contentHash) {
-                refuse(cf, "changed on disk while the bake ran (someone's edit?); not written, so the edit is kept: bake it again");
+                refuse(cf, kEditedDuringBake);
             } else {
                 Expected<std::string> rewritten = rewriteChunkShadows(*text, cf.path, shadowWrites(cv));
                 if (!rewritten) return stopWith(rewritten.error());

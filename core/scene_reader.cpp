@@ -359,11 +359,17 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
 Expected<Mesh> loadModelResource(const std::string& path) {
     std::string ext = fs::path(path).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    // A group whose alpha the mesh file leaves unknown fails the model, unless a .model
+    // override below has settled it.
+    auto unknownAlpha = [](const Mesh& m) -> std::optional<Error> {
+        for (const PrimitiveGroup& g : m.groups)
+            if (g.alphaUnknown) return g.alphaUnknown;
+        return std::nullopt;
+    };
     if (ext != ".model") {
         Expected<Mesh> mesh = loadMeshFile(path);
         if (mesh)
-            for (const PrimitiveGroup& g : mesh->groups)
-                if (g.alphaUnknown) return *g.alphaUnknown;
+            if (std::optional<Error> e = unknownAlpha(*mesh)) return *e;
         return mesh;
     }
     tinyxml2::XMLDocument doc;
@@ -393,8 +399,7 @@ Expected<Mesh> loadModelResource(const std::string& path) {
             if (flag == &pg.alphaTested) pg.alphaUnknown.reset();  // the override decides
         }
     }
-    for (const PrimitiveGroup& g : mesh->groups)
-        if (g.alphaUnknown) return *g.alphaUnknown;
+    if (std::optional<Error> e = unknownAlpha(*mesh)) return *e;
     mesh->sourceFiles.insert(mesh->sourceFiles.begin(), path);
     return mesh;
 }
