@@ -318,20 +318,21 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
 
     // 3. Outputs: never an input, and every one writable before any work is done.
     const std::vector<std::string> inputs = space.inputFiles();
+    const std::string outDir = opt.outDir.empty() ? opt.spaceDir : opt.outDir;
+    if (opt.write && !opt.outDir.empty()) {
+        // Before the results are probed: they may go into --out too.
+        std::error_code ec;
+        fs::create_directories(opt.outDir, ec);
+        if (ec) return makeError(ErrorKind::Io, opt.outDir, 0, "cannot create output directory: " + ec.message());
+    }
     if (Status s = refuseInputAsOutput(opt.resultsPath, inputs, "--results"); !s) return s.error();
     if (!opt.resultsPath.empty()) {
         Expected<std::string> probe = stageFile(opt.resultsPath, "");
         if (!probe) return probe.error();
         fs::remove(*probe);
     }
-    const std::string outDir = opt.outDir.empty() ? opt.spaceDir : opt.outDir;
     OutputLock lock;
     if (opt.write) {
-        if (!opt.outDir.empty()) {
-            std::error_code ec;
-            fs::create_directories(opt.outDir, ec);
-            if (ec) return makeError(ErrorKind::Io, opt.outDir, 0, "cannot create output directory: " + ec.message());
-        }
         if (Status s = lock.acquire(outDir); !s) return s.error();
         // Temporaries of a bake that was killed are never chunk files; clear them away
         // (only now: the lock guarantees they are no running bake's).

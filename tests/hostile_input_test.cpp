@@ -167,6 +167,16 @@ TEST(HostileInput, ResultsThatCannotBeWrittenStopTheBakeBeforeAnyChunkIsWritten)
               4);
     EXPECT_NE(readText(dir / "err").find("no chunk file was changed"), std::string::npos) << readText(dir / "err");
     EXPECT_EQ(chunkTexts(space), before);
+    // Results inside an --out directory the bake creates (the README's sample command):
+    // the directory is made before the results are checked writable.
+    const fs::path out = dir / "new-out";
+    EXPECT_EQ(runCli("bake '" + space.string() + "' --quiet --stages raycast --out '" + out.string() + "' --results '" +
+                         (out / "r.json").string() + "'",
+                     dir / "out", dir / "err"),
+              0)
+        << readText(dir / "err");
+    EXPECT_TRUE(fs::exists(out / "r.json"));
+    EXPECT_EQ(chunkTexts(out).size(), before.size());
 }
 
 // With --resume chunks are committed as they are baked: a failure after some of them names
