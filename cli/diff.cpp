@@ -1,11 +1,11 @@
 #include "cli/diff.h"
 #include "cli/output_guard.h"
 #include "core/file_read.h"
+#include "core/results_file.h"
 
 #include <tinyxml2.h>
 
 #include <algorithm>
-#include <limits>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -121,126 +121,43 @@ std::string trim(const char* s) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Reading a results JSON file
+// Reading a results JSON file: core/results_file.h reads and checks it (the one reader of
+// the format); here it only becomes one side of the comparison.
 
-// nlohmann messages start with "[json.exception.type_error.302] "; the rest is the point.
-std::string jsonMessage(const std::exception& e) {
-    std::string w = e.what();
-    const size_t k = w.find("] ");
-    return k == std::string::npos ? w : w.substr(k + 2);
-}
+Vec vecOf(const glm::dvec3& v) { return {v.x, v.y, v.z}; }
 
-// An integer field: a JSON integer (neither 2.5 nor 1e308: converting those is undefined)
-// within T's range.
-template <class T>
-T integer(const json& o, const char* key) {
-    const json& v = o.at(key);
-    const std::string what = std::string("'") + key + "' ";
-    if (!v.is_number_integer()) throw InputError{what + "must be an integer, not " + v.dump()};
-    using Limits = std::numeric_limits<T>;
-    if (v.is_number_unsigned()) {
-        const uint64_t u = v.get<uint64_t>();
-        if (u > uint64_t(Limits::max())) throw InputError{what + v.dump() + " is out of range"};
-        return T(u);
-    }
-    const int64_t s = v.get<int64_t>();
-    if (s < int64_t(Limits::min()) || (s > 0 && uint64_t(s) > uint64_t(Limits::max())))
-        throw InputError{what + v.dump() + " is out of range"};
-    return T(s);
-}
-
-Vec readVec(const json& a) {
-    if (!a.is_array() || a.size() != 3) throw InputError{"expected [x, y, z]"};
-    return {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
-}
-
-Evidence readBit(const json& jl) {
-    Evidence e;
-    e.bit = integer<int>(jl, "bit");
-    e.verdict = jl.at("verdict").get<std::string>();
-    e.stage = jl.value("stage", std::string());
-    e.reason = jl.value("reason", std::string());
-    if (jl.contains("witness")) {
-        const json& w = jl["witness"];
-        e.witness = WitnessRay{readVec(w.at("origin")), readVec(w.at("direction")), readVec(w.at("p")),
-                               readVec(w.at("q")), w.value("receiver", std::string())};
-    }
-    return e;
-}
-
-// One object of a results file. `where` is kept pointing at the part being read, so that
-// an error names it ("chunks[0].objects[2].groups[1]").
-ObjectBake readObject(const json& jo, const std::string& at, std::string& where) {
-    where = at;
-    ObjectBake o;
-    o.element = integer<int>(jo, "element");
-    o.kind = jo.at("kind").get<std::string>();
-    o.uuid = jo.value("uuid", std::string());
-    o.skipped = jo.value("skipped", false);
-    if (o.skipped) return o;
-    o.mask = integer<uint32_t>(jo, "mask");
-    for (const json& jg : jo.at("groups")) {
-        const std::string ga = at + ".groups[" + std::to_string(o.groups.size()) + "]";
-        where = ga;
-        if (integer<size_t>(jg, "group") != o.groups.size()) throw InputError{"groups out of order"};
-        GroupBits g;
-        g.mask = integer<uint32_t>(jg, "mask");
-        for (const json& jl : jg.at("lights")) {
-            where = ga + ".lights[" + std::to_string(g.lights.size()) + "]";
-            if (integer<size_t>(jl, "light") != g.lights.size() + 1) throw InputError{"lights out of order"};
-            g.lights.push_back(readBit(jl));
-        }
-        o.groups.push_back(std::move(g));
-    }
-    return o;
-}
-
-Bake readResults(const std::string& path, const std::string& text) {
-    json j;
-    try {
-        j = json::parse(text);
-    } catch (const json::parse_error& e) {
-        // e.byte is 1-based and points at the character that broke the parse.
-        const size_t at = std::min(text.size(), e.byte > 0 ? size_t(e.byte - 1) : size_t(0));
-        const size_t line = 1 + size_t(std::count(text.begin(), text.begin() + std::ptrdiff_t(at), '\n'));
-        std::string msg = jsonMessage(e);
-        if (size_t k = msg.find("column"); k != std::string::npos && msg.find(": ", k) != std::string::npos)
-            msg = msg.substr(msg.find(": ", k) + 2);
-        throw InputError{path + ":" + std::to_string(line) + ": malformed JSON: " + msg};
-    } catch (const json::exception& e) {
-        // A number too large for a double (1e400) is out_of_range, not a parse error.
-        throw InputError{path + ": malformed JSON: " + jsonMessage(e)};
-    }
-    if (!j.is_object() || !j.contains("format") || j["format"] != "shadowcull-results")
-        throw InputError{path + ": not a shadowcull results file (expected \"format\": \"shadowcull-results\")"};
+Bake fromResults(const std::string& path, const results::ResultsFile& file) {
     Bake b;
     b.path = path;
-    std::string where = "top level";
-    try {
-        if (integer<int>(j, "version") != 1)
-            throw InputError{"unsupported version " + j["version"].dump() + " (this tool reads version 1)"};
-        for (const json& L : j.at("lights")) {
-            where = "lights[" + std::to_string(b.lights.size()) + "]";
-            b.lights.push_back({L.at("name").get<std::string>(), L.at("type").get<std::string>()});
+    for (const results::LightRecord& L : file.lights) b.lights.push_back({L.name, L.type});
+    for (const results::ChunkRecord& rc : file.chunks) {
+        ChunkBake& c = b.chunks[rc.chunk];  // the reader refuses a chunk named twice
+        c.simulated = rc.simulated;
+        for (const results::ObjectRecord& ro : rc.objects) {
+            ObjectBake& o = c.objects.emplace_back();
+            o.element = ro.element;
+            o.kind = ro.kind;
+            o.uuid = ro.uuid;
+            o.skipped = ro.skipped;
+            o.mask = ro.mask;
+            for (const results::GroupRecord& rg : ro.groups) {
+                GroupBits& g = o.groups.emplace_back();
+                g.mask = rg.mask;
+                for (const results::BitRecord& rb : rg.lights) {
+                    Evidence& e = g.lights.emplace_back();
+                    e.bit = rb.bit;
+                    e.verdict = rb.verdict;
+                    e.stage = rb.stage;
+                    e.reason = rb.reason;
+                    if (const std::optional<results::WitnessRecord>& w = rb.witness)
+                        e.witness = WitnessRay{vecOf(w->origin), vecOf(w->direction), vecOf(w->p), vecOf(w->q),
+                                               w->receiver};
+                }
+            }
         }
-        size_t ci = 0;
-        for (const json& jc : j.at("chunks")) {
-            const std::string ca = "chunks[" + std::to_string(ci++) + "]";
-            where = ca;
-            const std::string name = jc.at("chunk").get<std::string>();
-            if (b.chunks.count(name)) throw InputError{"chunk " + name + " appears twice"};
-            ChunkBake& c = b.chunks[name];
-            if (jc.contains("simulated")) c.simulated = jc["simulated"].get<std::vector<std::string>>();
-            for (const json& jo : jc.at("objects"))
-                c.objects.push_back(readObject(jo, ca + ".objects[" + std::to_string(c.objects.size()) + "]", where));
-            assignKeys(c);
-        }
-        if (j.contains("warnings")) b.warnings = j["warnings"].size();
-    } catch (const json::exception& e) {
-        throw InputError{path + ": malformed results at " + where + ": " + jsonMessage(e)};
-    } catch (const InputError& e) {
-        throw InputError{path + ": malformed results at " + where + ": " + e.message};
+        assignKeys(c);
     }
+    b.warnings = file.warnings.size();
     return b;
 }
 
@@ -319,9 +236,9 @@ Bake readSpace(const std::string& path) {
 
 Bake readBake(const std::string& path) {
     if (fs::is_directory(path)) return readSpace(path);
-    Expected<std::string> text = readRegularFile(path, "results file");
-    if (!text) throw InputError{text.error().what()};
-    return readResults(path, *text);
+    Expected<results::ResultsFile> file = results::readResultsFile(path);
+    if (!file) throw InputError{file.error().what()};
+    return fromResults(path, *file);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -825,7 +742,7 @@ std::string jsonReport(const Bake& a, const Bake& b, const Comparison& c) {
         objects.push_back(jo);
     }
     j["objectChanges"] = objects;
-    return j.dump(1) + "\n";
+    return j.dump(1, ' ', false, json::error_handler_t::replace) + "\n";  // paths need not be UTF-8
 }
 
 // --- HTML ---

@@ -16,6 +16,7 @@
 #include "cli/check.h"
 #include "cli/diff.h"
 #include "cli/explain.h"
+#include "cli/gltf_commands.h"
 #include "cli/report.h"
 #include "cli/sweep.h"
 #include "gpu/render.h"
@@ -170,6 +171,31 @@ int main(int argc, char** argv) {
     render->add_option("--method", renderMethod, "Colour by the analytic verdicts (default) or the GPU method's")
         ->check(CLI::IsMember({"analytic", "gpu"}));
 
+    gltf::ImportOptions importOpt;
+    std::string importSun;
+    CLI::App* import = app.add_subcommand("import", "Turn a glTF 2.0 scene (nodes, meshes, KHR_lights_punctual) into a space");
+    import->add_option("scene", importOpt.scenePath, "Scene (.gltf or .glb)")->required()->check(CLI::ExistingFile);
+    import->add_option("out", importOpt.outDir, "New space directory (must not exist, or be empty)")->required();
+    import->add_option("--scene", importOpt.scene, "Scene index (default: the file's default scene)");
+    import->add_option("--sun", importSun, "Add a directional light: AZIMUTH,ELEVATION in degrees (azimuth 0 = -Z, 90 = +X)");
+    import->add_option("--bias", importOpt.bias, "Shadow bias of every light, metres (a light node's extras.shadowcull_bias overrides)")
+        ->check(CLI::Range(0.0, 1e5));
+    import->add_option("--slope-bias", importOpt.slopeBias, "Slope bias of every light, metres at 45 degrees")->check(CLI::Range(0.0, 1e5));
+    import->add_option("--filter-radius", importOpt.filterRadius, "Filter radius of every light, metres")->check(CLI::Range(0.0, 1e5));
+    import->add_option("--chunk-size", importOpt.chunkSize, "Chunk side in metres (default 64)");
+    import->add_option("--neighbours", importOpt.neighbours, "Chunks loaded on each side of a baked chunk (default: chosen, see docs)")
+        ->check(CLI::Range(0, 64));
+    import->add_option("--light-cutoff", importOpt.lightCutoffLux,
+                       "Lux at which a point or spot light without range ends (default 0.01)")
+        ->check(CLI::PositiveNumber);
+
+    gltf::ExportOptions exportOpt;
+    CLI::App* exportCmd = app.add_subcommand("export", "Write a bake's masks into a copy of the imported glTF scene (extras.shadowcull)");
+    exportCmd->add_option("space", exportOpt.spaceDir, "Space written by import")->required()->check(CLI::ExistingDirectory);
+    exportCmd->add_option("results", exportOpt.resultsPath, "Results JSON of a bake of that space")->required()->check(CLI::ExistingFile);
+    exportCmd->add_option("--gltf", exportOpt.scenePath, "The scene the space was imported from")->required()->check(CLI::ExistingFile);
+    exportCmd->add_option("--out", exportOpt.outPath, "The copy to write (.glb for a .glb scene, .gltf for a .gltf scene)")->required();
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -208,6 +234,8 @@ int main(int argc, char** argv) {
         return kExitOk;
     }
     if (*explain) return runExplain(explainOpt, std::cout, std::cerr);
+    if (*import) return runImport(importOpt, importSun, std::cout, std::cerr);
+    if (*exportCmd) return runExport(exportOpt, std::cout, std::cerr);
     if (*sweep) {
         std::vector<SweepSetting> ladder = analyticLadder(sweepOpt.quick);
         if (noGpu) ladder.erase(std::remove_if(ladder.begin(), ladder.end(), [](const SweepSetting& s) { return s.name.find("gpu") != std::string::npos || s.name.find("GPU") != std::string::npos; }), ladder.end());

@@ -26,6 +26,7 @@
 #include "core/file_read.h"
 #include "core/hash.h"
 #include "core/format.h"
+#include "core/results_file.h"
 #include "core/window.h"
 #include "gpu/baseline.h"
 #include "gpu/confirm_stage.h"
@@ -463,7 +464,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     std::string resultsTemp;
     const size_t warningsInResults = result.diagnostics.size();
     if (!opt.resultsPath.empty()) {
-        Expected<std::string> t = stageFile(opt.resultsPath, resultsJson(result).dump(1) + "\n");
+        Expected<std::string> t = stageFile(opt.resultsPath, results::writeResults(resultsFile(result)));
         if (!t) return stopWith(t.error());
         resultsTemp = *t;
     }
@@ -486,7 +487,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         // results were staged: stage them again so the file lists every warning.
         if (result.diagnostics.size() != warningsInResults) {
             fs::remove(resultsTemp);
-            Expected<std::string> t = stageFile(opt.resultsPath, resultsJson(result).dump(1) + "\n");
+            Expected<std::string> t = stageFile(opt.resultsPath, results::writeResults(resultsFile(result)));
             if (!t) return stopWith(t.error());
             resultsTemp = *t;
         }

@@ -64,80 +64,57 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
     return s;
 }
 
-namespace {
-
-nlohmann::json vec(const glm::dvec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
-
-}  // namespace
-
-nlohmann::json resultsJson(const BakeResult& r) {
-    using nlohmann::json;
-    json j;
-    j["format"] = "shadowcull-results";
-    j["version"] = 1;
-    j["space"] = r.settings.spaceDir;
-    json lights = json::array();
+results::ResultsFile resultsFile(const BakeResult& r) {
+    results::ResultsFile f;
+    f.space = r.settings.spaceDir;
     for (size_t l = 0; l < r.settings.lights.size(); ++l) {
         const Light& L = r.settings.lights[l];
-        lights.push_back({{"index", l + 1}, {"bit", l}, {"name", L.name}, {"type", lightTypeName(L.type)}});
+        f.lights.push_back({int(l) + 1, int(l), L.name, lightTypeName(L.type)});
     }
-    j["lights"] = lights;
-    json chunks = json::array();
     for (const ChunkVerdicts& cv : r.chunks) {
-        json jc;
-        jc["chunk"] = chunkFileName(cv.coord);
-        jc["simulated"] = cv.simulated;
-        json objects = json::array();
+        results::ChunkRecord& c = f.chunks.emplace_back();
+        c.chunk = chunkFileName(cv.coord);
+        c.simulated = cv.simulated;
         for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
             const ObjectVerdicts& ov = cv.objects[oi];
-            json jo;
-            jo["element"] = ov.elementIndex;
-            jo["kind"] = ov.terrain ? "terrain" : "model";
-            if (!ov.uuid.empty()) jo["uuid"] = ov.uuid;
-            if (ov.windowObject < 0) {
-                jo["skipped"] = true;
-                objects.push_back(jo);
-                continue;
-            }
-            uint32_t mask = 0;
-            json groups = json::array();
+            results::ObjectRecord& o = c.objects.emplace_back();
+            o.element = ov.elementIndex;
+            o.kind = ov.terrain ? "terrain" : "model";
+            o.uuid = ov.uuid;
+            o.skipped = ov.windowObject < 0;
+            if (o.skipped) continue;
             for (int g = 0; g < ov.groupCount; ++g) {
-                const uint32_t gm = cv.groupMask(oi, g);
-                mask |= gm;
-                json bits = json::array();
+                results::GroupRecord& gr = o.groups.emplace_back();
+                gr.group = g;
+                gr.mask = cv.groupMask(oi, g);
+                o.mask |= gr.mask;
                 for (int l = 0; l < cv.lightCount; ++l) {
                     const Decision& d = cv.at(oi, g, l);
-                    json jb;
-                    jb["light"] = l + 1;
-                    jb["bit"] = d.verdict == Verdict::Culled ? 0 : 1;
-                    jb["verdict"] = verdictName(d.verdict);
-                    if (!d.stage.empty()) jb["stage"] = std::string(d.stage);
-                    if (!d.reason().empty()) jb["reason"] = std::string(d.reason());
-                    if (const Witness* wp = d.witness()) {
-                        const Witness& w = *wp;
-                        jb["witness"] = {{"origin", vec(w.wsOrigin)}, {"direction", vec(w.wsDirection)},
-                                         {"p", vec(w.wsP)}, {"q", vec(w.wsQ)}, {"receiver", w.receiver}};
-                    }
-                    bits.push_back(jb);
+                    results::BitRecord& b = gr.lights.emplace_back();
+                    b.light = l + 1;
+                    b.bit = d.verdict == Verdict::Culled ? 0 : 1;
+                    b.verdict = verdictName(d.verdict);
+                    b.stage = std::string(d.stage);
+                    b.reason = std::string(d.reason());
+                    if (const Witness* w = d.witness())
+                        b.witness = results::WitnessRecord{w->wsOrigin, w->wsDirection, w->wsP, w->wsQ, w->receiver};
                 }
-                groups.push_back({{"group", g}, {"mask", gm}, {"lights", bits}});
             }
-            jo["mask"] = mask;
-            jo["groups"] = groups;
-            objects.push_back(jo);
         }
-        jc["objects"] = objects;
-        chunks.push_back(jc);
     }
-    j["chunks"] = chunks;
-    const BitCounts c = countBits(r);
-    j["summary"] = {{"chunks", r.chunks.size()}, {"groups", c.groups},   {"bits", c.bits},
-                    {"kept", c.kept},            {"culled", c.culled},   {"provedKept", c.provedKept},
-                    {"undecided", c.undecided},  {"culledBy", c.culledBy}};
-    json warnings = json::array();
-    for (const Diagnostic& d : r.diagnostics) warnings.push_back(d.what());
-    j["warnings"] = warnings;
-    return j;
+    // The counts the summary line prints (countBits), not recounted from the records.
+    const BitCounts n = countBits(r);
+    f.summary.chunks = r.chunks.size();
+    f.summary.groups = n.groups;
+    f.summary.bits = n.bits;
+    f.summary.kept = n.kept;
+    f.summary.culled = n.culled;
+    f.summary.provedKept = n.provedKept;
+    f.summary.undecided = n.undecided;
+    f.summary.culledBy = n.culledBy;
+    for (const Diagnostic& d : r.diagnostics) f.warnings.push_back(d.what());
+    return f;
 }
+
 
 }  // namespace shadowcull::cli

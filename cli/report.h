@@ -3,9 +3,9 @@
 
 #include <string>
 
-#include <nlohmann/json.hpp>
 
 #include "cli/pipeline.h"
+#include "core/results_file.h"
 
 namespace shadowcull::cli {
 
@@ -23,9 +23,11 @@ BitCounts countBits(const BakeResult& r);
 // The summary printed at the end of a bake (plain text, deterministic but for the times).
 std::string formatSummary(const BakeResult& r, bool wrote);
 
-// Per chunk, object, group and light: the bit, the deciding stage and its evidence.
-// Deterministic for the same input: chunks in grid order, objects in document order,
-// doubles printed in shortest round-trip form.
-nlohmann::json resultsJson(const BakeResult& r);
+// The results file (--results) of a bake: per chunk, object, group and light, the bit, the
+// deciding stage and its evidence; written by results::writeResults. Deterministic for the
+// same input: chunks in grid order, objects in document order (the writer prints doubles in
+// shortest round-trip form).
+results::ResultsFile resultsFile(const BakeResult& r);
+
 
 }  // namespace shadowcull::cli

@@ -2,6 +2,13 @@
 // decoding (core/gltf_document.h). Only what shadow culling needs is decoded; every range
 // is checked against the real data so that a truncated or inconsistent file is an error
 // naming the file and the JSON path, never a wrong mesh.
+//
+// Read as real pipelines write it: KHR_mesh_quantization (integer positions, normalized
+// or not), sparse accessors, EXT_meshopt_compression buffer views (decoded by Debian's
+// libmeshoptimizer, once per view) and KHR_draco_mesh_compression primitives (decoded by
+// Debian's libdraco). The compressed formats are decoded by their reference libraries;
+// everything around them (ranges, counts, strides, modes) is checked here first, since
+// both libraries assert or trust their arguments.
 
 #include "core/gltf_document.h"
 
@@ -10,7 +17,12 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <map>
+#include <new>
 #include <optional>
+
+#include <draco/compression/decode.h>
+#include <meshoptimizer.h>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
@@ -147,15 +159,65 @@ glm::dmat4 localTransform(const json& node, const std::string& where) {
 }
 
 // An accessor resolved to bytes; `data` is null for an accessor without bufferView, whose
-// elements are all zero by the glTF spec.
+// elements are all zero by the glTF spec. `data` points into a buffer, into a decoded
+// EXT_meshopt_compression view (both owned by the document), or into `owned` (a sparse
+// accessor, applied to a copy of its base).
 struct AccessorView {
     std::string where;
     uint64_t componentType = 0;
+    bool normalized = false;
     std::string type;
     size_t count = 0;
     size_t stride = 0;
     const uint8_t* data = nullptr;
+    std::shared_ptr<const std::vector<uint8_t>> owned;
 };
+
+// A buffer view's bytes: a range of its buffer, or what its EXT_meshopt_compression data
+// decodes to. `stride` is the view's byteStride when it has one.
+struct ViewBytes {
+    const uint8_t* data = nullptr;
+    uint64_t length = 0;
+    std::optional<uint64_t> stride;
+    std::string origin;        // for messages: "buffers[0]", or "the data decoded from ..."
+    uint64_t originOffset = 0;  // the view's byteOffset in `origin`
+    std::string describe(uint64_t offset) const {
+        return "byte offset " + std::to_string(originOffset + offset) + " of " + origin;
+    }
+};
+
+size_t componentSize(uint64_t componentType) {
+    return componentType == 5120 || componentType == 5121 ? 1
+         : componentType == 5122 || componentType == 5123 ? 2
+         : componentType == 5125 || componentType == 5126 ? 4 : 0;
+}
+
+// One component as a number. Integer types (KHR_mesh_quantization) are taken as they are,
+// or when normalized by the glTF 2.0 formulas: signed max(c / (2^(n-1) - 1), -1.0),
+// unsigned c / (2^n - 1).
+double component(const uint8_t* p, uint64_t componentType, bool normalized) {
+    switch (componentType) {
+    case 5120: {
+        const double c = double(int(p[0]) - (p[0] >= 0x80 ? 0x100 : 0));
+        return normalized ? std::max(c / 127.0, -1.0) : c;
+    }
+    case 5121: return normalized ? p[0] / 255.0 : double(p[0]);
+    case 5122: {
+        const uint32_t u = readUint(p, 2);
+        const double c = double(long(u) - (u >= 0x8000 ? 0x10000 : 0));
+        return normalized ? std::max(c / 32767.0, -1.0) : c;
+    }
+    case 5123: return normalized ? readUint(p, 2) / 65535.0 : double(readUint(p, 2));
+    case 5125: return double(readUint(p, 4));
+    default: return double(readFloat(p));
+    }
+}
+
+// The largest ratio of decoded to compressed bytes that EXT_meshopt_compression can reach:
+// the attribute codec spends at least 2 header bits on every 16 bytes of a byte channel
+// (a group of zero deltas), so 64:1 at best; the index codecs spend at least a byte per
+// triangle or per index (12:1, 4:1). A view that claims more is corrupt or hostile.
+constexpr uint64_t kMeshoptMaxRatio = 64;
 
 
 }  // namespace
@@ -174,6 +236,27 @@ struct GltfDocument::Impl {
     std::vector<std::optional<std::vector<GltfPrimitive>>> meshes;  // decoded on first use
     std::vector<std::string> sourceFiles;
     std::vector<Diagnostic> warnings;
+    // EXT_meshopt_compression views by index, decoded on first use (map: stable references).
+    std::map<uint64_t, std::vector<uint8_t>> decodedViews;
+    uint64_t bufferBytes = 0;   // bytes of the buffers read so far
+    uint64_t decodedBytes = 0;  // bytes of decodedViews
+    uint64_t fileBytes = 0;     // bytes of the .gltf/.glb itself
+    // Vertices and indices decoded so far, over every primitive. Each primitive decodes its
+    // accessors anew, so a small file whose thousand primitives all name one big accessor
+    // (or one of 2^24 zeros without bufferView) would otherwise ask for a copy each:
+    // hundreds of gigabytes from kilobytes. A real file decodes at most about 64 elements
+    // per byte it holds (meshopt's best ratio; a byte per index), so more than that is
+    // refused as corrupt or hostile.
+    uint64_t decodedElements = 0;
+    void spend(uint64_t elements, const std::string& where) {
+        const uint64_t budget = 64 * (fileBytes + bufferBytes) + (uint64_t(1) << 24);
+        decodedElements += elements;
+        if (decodedElements > budget)
+            fail(where + ": decoding would give " + std::to_string(decodedElements) + " vertices and indices from " +
+                 std::to_string(fileBytes + bufferBytes) +
+                 " bytes of file and buffers, more than 64 per byte (accessors shared by many primitives, or a "
+                 "corrupt count)");
+    }
 
     void open() {
         readContainer();
@@ -183,12 +266,10 @@ struct GltfDocument::Impl {
             if (version && version->is_string() && version->get<std::string>().rfind("2.", 0) != 0)
                 fail("asset.version: glTF " + version->get<std::string>() + " is not supported (2.x expected)");
         }
-        if (const json* required = member(doc, "extensionsRequired"); required && required->is_array()) {
-            // Compressed geometry would otherwise be read as the (absent) plain accessors.
-            for (const json& e : *required)
-                if (e == "KHR_draco_mesh_compression" || e == "EXT_meshopt_compression")
-                    fail("extensionsRequired: " + e.get<std::string>() + " is not supported");
-        }
+        // extensionsRequired: the geometry extensions (KHR_mesh_quantization,
+        // EXT_meshopt_compression, KHR_draco_mesh_compression) are read where they occur;
+        // the others concern nothing shadow culling reads (textures, materials), except
+        // EXT_mesh_gpu_instancing, refused on the node that uses it.
         buffers.resize(array("buffers").size());  // before any buffer() hands out references
         meshes.resize(array("meshes").size());
         readNodes();
@@ -214,6 +295,7 @@ struct GltfDocument::Impl {
     void readContainer() {
         std::vector<uint8_t> bytes;
         readFile(path, "glTF file", bytes);
+        fileBytes = bytes.size();
         std::string text;
         if (bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0) {
             isGlb = true;
@@ -269,6 +351,13 @@ struct GltfDocument::Impl {
         const json& b = element("buffers", i, referrer);
         if (buffers[i]) return *buffers[i];
         const std::string where = at("buffers", i);
+        // A placeholder for the uncompressed data of EXT_meshopt_compression views: never
+        // read (it usually has no data at all), and only compressed views may name it.
+        if (const json* ext = member(b, "extensions"); ext && ext->is_object())
+            if (const json* mo = member(*ext, "EXT_meshopt_compression"); mo && mo->is_object())
+                if (const json* fallback = member(*mo, "fallback"); fallback && *fallback == true)
+                    fail(referrer + ": " + where + " is an EXT_meshopt_compression fallback buffer, which only " +
+                         "compressed buffer views may name (as the buffer of their uncompressed data)");
         const uint64_t byteLength = uintField(b, "byteLength", where);
         std::vector<uint8_t> data;
         const json* uriField = member(b, "uri");
@@ -297,60 +386,221 @@ struct GltfDocument::Impl {
             fail(where + ": byteLength is " + std::to_string(byteLength) + " but only " + std::to_string(data.size()) +
                  " bytes are present (truncated)");
         data.resize(size_t(byteLength));  // GLB padding is not part of the buffer
+        bufferBytes += data.size();
         buffers[i] = std::move(data);
         return *buffers[i];
+    }
+
+    // Buffer view `view`'s bytes, decoded from EXT_meshopt_compression if it has that.
+    ViewBytes bufferView(uint64_t view, const std::string& referrer) {
+        const std::string where = at("bufferViews", view);
+        const json& bv = element("bufferViews", view, referrer);
+        ViewBytes out;
+        out.length = uintField(bv, "byteLength", where);
+        if (member(bv, "byteStride")) out.stride = uintField(bv, "byteStride", where);
+        if (const json* ext = member(bv, "extensions"); ext && ext->is_object()) {
+            if (const json* mo = member(*ext, "EXT_meshopt_compression")) {
+                out.data = meshoptView(view, bv, *mo, where, out.length).data();
+                out.origin = "the data decoded from " + where + ".extensions.EXT_meshopt_compression";
+                return out;
+            }
+            if (member(*ext, "MESHOPT_compression"))
+                fail(where + ": MESHOPT_compression (the draft of EXT_meshopt_compression) is not supported; " +
+                     "re-export with gltfpack 0.15 or later");
+        }
+        const uint64_t offset = uintField(bv, "byteOffset", where, 0);
+        const uint64_t b = uintField(bv, "buffer", where);
+        const std::vector<uint8_t>& buf = buffer(b, where);
+        if (offset > buf.size() || out.length > buf.size() - offset)
+            fail(where + ": bytes " + std::to_string(offset) + ".." + std::to_string(offset + out.length) +
+                 " lie outside its buffer of " + std::to_string(buf.size()) + " bytes (truncated)");
+        out.data = buf.data() + offset;
+        out.origin = at("buffers", b);
+        out.originOffset = offset;
+        return out;
+    }
+
+    // EXT_meshopt_compression: the view's bytes decoded by libmeshoptimizer, once. Every
+    // constraint of the extension's spec is checked first (the library asserts them).
+    const std::vector<uint8_t>& meshoptView(uint64_t view, const json& bv, const json& ext, const std::string& where,
+                                            uint64_t viewLength) {
+        if (auto done = decodedViews.find(view); done != decodedViews.end()) return done->second;
+        const std::string ew = where + ".extensions.EXT_meshopt_compression";
+        if (!ext.is_object()) fail(ew + ": object expected");
+        const uint64_t count = uintField(ext, "count", ew);
+        const uint64_t stride = uintField(ext, "byteStride", ew);
+        const json* modeField = member(ext, "mode");
+        if (!modeField || !modeField->is_string()) fail(ew + ".mode: ATTRIBUTES, TRIANGLES or INDICES expected");
+        const std::string mode = modeField->get<std::string>();
+        if (mode != "ATTRIBUTES" && mode != "TRIANGLES" && mode != "INDICES")
+            fail(ew + ".mode: '" + mode + "' is not ATTRIBUTES, TRIANGLES or INDICES");
+        std::string filter = "NONE";
+        if (const json* f = member(ext, "filter")) {
+            if (!f->is_string()) fail(ew + ".filter: NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL expected");
+            filter = f->get<std::string>();
+        }
+        if (filter != "NONE" && filter != "OCTAHEDRAL" && filter != "QUATERNION" && filter != "EXPONENTIAL")
+            fail(ew + ".filter: '" + filter + "' is not NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL");
+        if (mode == "ATTRIBUTES" && (stride == 0 || stride % 4 != 0 || stride > 256))
+            fail(ew + ".byteStride: " + std::to_string(stride) + " (ATTRIBUTES needs a multiple of 4, at most 256)");
+        if (mode != "ATTRIBUTES" && stride != 2 && stride != 4)
+            fail(ew + ".byteStride: " + std::to_string(stride) + " (" + mode + " needs 2 or 4)");
+        if (mode == "TRIANGLES" && count % 3 != 0)
+            fail(ew + ".count: " + std::to_string(count) + " indices do not make whole triangles");
+        if (mode != "ATTRIBUTES" && filter != "NONE") fail(ew + ".filter: " + filter + " with mode " + mode + " (only NONE)");
+        if ((filter == "OCTAHEDRAL" && stride != 4 && stride != 8) || (filter == "QUATERNION" && stride != 8))
+            fail(ew + ".byteStride: " + std::to_string(stride) + " does not suit filter " + filter +
+                 (filter == "QUATERNION" ? " (8 expected)" : " (4 or 8 expected)"));
+        if (const json* parentStride = member(bv, "byteStride"); parentStride && *parentStride != stride)
+            fail(where + ".byteStride: " + parentStride->dump() + " differs from the extension's byteStride " +
+                 std::to_string(stride));
+        // count is bounded by the view length before the product is formed (stride <= 256).
+        if (count > viewLength || count * stride != viewLength)
+            fail(ew + ": count " + std::to_string(count) + " x byteStride " + std::to_string(stride) + " is not " +
+                 where + ".byteLength " + std::to_string(viewLength));
+
+        const uint64_t b = uintField(ext, "buffer", ew);
+        const uint64_t offset = uintField(ext, "byteOffset", ew, 0);
+        const uint64_t length = uintField(ext, "byteLength", ew);
+        const std::vector<uint8_t>& buf = buffer(b, ew);
+        if (offset > buf.size() || length > buf.size() - offset)
+            fail(ew + ": bytes " + std::to_string(offset) + ".." + std::to_string(offset + length) + " lie outside " +
+                 at("buffers", b) + " of " + std::to_string(buf.size()) + " bytes (truncated)");
+        // Decoded-size bound: no valid stream decodes to more than kMeshoptMaxRatio times its
+        // compressed length, so a view that claims more is refused before anything is
+        // allocated; and the views decoded so far together stay within that ratio of all
+        // the buffer bytes read, so that many views naming the same compressed bytes cannot
+        // add up either. Memory is thus at most 64 times the input's size.
+        if (viewLength > kMeshoptMaxRatio * length)
+            fail(ew + ": " + std::to_string(count) + " elements of " + std::to_string(stride) + " bytes (" +
+                 std::to_string(viewLength) + " bytes) cannot come from " + std::to_string(length) +
+                 " compressed bytes (at most " + std::to_string(kMeshoptMaxRatio) + " times as many; corrupt?)");
+        if (decodedBytes + viewLength > kMeshoptMaxRatio * bufferBytes)
+            fail(ew + ": with its " + std::to_string(viewLength) + " bytes the decoded views would hold " +
+                 std::to_string(decodedBytes + viewLength) + " bytes, more than " + std::to_string(kMeshoptMaxRatio) +
+                 " times the " + std::to_string(bufferBytes) + " buffer bytes read (views sharing compressed bytes?)");
+
+        std::vector<uint8_t> out(static_cast<size_t>(viewLength));
+        const unsigned char* src = buf.data() + offset;
+        const int rc = mode == "ATTRIBUTES" ? meshopt_decodeVertexBuffer(out.data(), count, stride, src, length)
+                     : mode == "TRIANGLES"  ? meshopt_decodeIndexBuffer(out.data(), count, stride, src, length)
+                                            : meshopt_decodeIndexSequence(out.data(), count, stride, src, length);
+        if (rc != 0)
+            fail(ew + ": the compressed " + mode + " data (" + std::to_string(length) + " bytes at byte offset " +
+                 std::to_string(offset) + " of " + at("buffers", b) + ") does not decode (meshoptimizer error " +
+                 std::to_string(rc) + "; truncated or corrupt)");
+        if (filter == "OCTAHEDRAL") meshopt_decodeFilterOct(out.data(), count, stride);
+        if (filter == "QUATERNION") meshopt_decodeFilterQuat(out.data(), count, stride);
+        if (filter == "EXPONENTIAL") meshopt_decodeFilterExp(out.data(), count, stride);
+        decodedBytes += viewLength;
+        return decodedViews.emplace(view, std::move(out)).first->second;
     }
 
     AccessorView accessor(uint64_t i, const std::string& referrer) {
         AccessorView v;
         v.where = at("accessors", i);
         const json& a = element("accessors", i, referrer);
-        if (member(a, "sparse")) fail(v.where + ": sparse accessors are not supported");
         v.componentType = uintField(a, "componentType", v.where);
-        const size_t componentSize = v.componentType == 5120 || v.componentType == 5121 ? 1
-                                   : v.componentType == 5122 || v.componentType == 5123 ? 2
-                                   : v.componentType == 5125 || v.componentType == 5126 ? 4 : 0;
-        if (!componentSize) fail(v.where + ".componentType: unknown value " + std::to_string(v.componentType));
+        const size_t compSize = componentSize(v.componentType);
+        if (!compSize) fail(v.where + ".componentType: unknown value " + std::to_string(v.componentType));
+        if (const json* normalized = member(a, "normalized")) {
+            if (!normalized->is_boolean()) fail(v.where + ".normalized: true or false expected");
+            v.normalized = normalized->get<bool>();
+            if (v.normalized && compSize == 4)
+                fail(v.where + ".normalized: only BYTE, UNSIGNED_BYTE, SHORT and UNSIGNED_SHORT components can be normalized");
+        }
         const json* type = member(a, "type");
         if (!type || !type->is_string()) fail(v.where + ".type: string expected");
         v.type = type->get<std::string>();
         const uint64_t count = uintField(a, "count", v.where);
         const size_t components = v.type == "SCALAR" ? 1 : v.type == "VEC2" ? 2 : v.type == "VEC3" ? 3 : v.type == "VEC4" ? 4 : 0;
         if (!components) fail(v.where + ".type: '" + v.type + "' is not SCALAR or VECn");
-        const size_t elementSize = componentSize * components;
+        const size_t elementSize = compSize * components;
         const json* viewIndex = member(a, "bufferView");
         if (!viewIndex) {
-            // All-zero data: legitimate only in small amounts, so a huge count means corruption
-            // (and must not become a huge allocation).
+            // All-zero data (unless sparse substitutes some): legitimate only in small
+            // amounts, so a huge count means corruption (and must not become a huge allocation).
             if (count > (uint64_t(1) << 24)) fail(v.where + ": count " + std::to_string(count) + " without bufferView");
             v.count = size_t(count);
-            return v;
+        } else {
+            const uint64_t view = uintField(a, "bufferView", v.where);
+            const std::string viewWhere = at("bufferViews", view);
+            const ViewBytes bytes = bufferView(view, v.where);
+            const uint64_t stride = bytes.stride.value_or(elementSize);
+            if (stride < elementSize || stride > 255)
+                fail(viewWhere + ".byteStride: " + std::to_string(stride) + " does not fit " + v.where + "'s " +
+                     std::to_string(elementSize) + "-byte elements");
+            const uint64_t offset = uintField(a, "byteOffset", v.where, 0);
+            const uint64_t viewLength = bytes.length;
+            // Bounding count and offset by the view length first keeps the product below 2^64.
+            if (count > 0 && (offset > viewLength || count > viewLength || offset + (count - 1) * stride + elementSize > viewLength))
+                fail(v.where + ": " + std::to_string(count) + " elements from " + bytes.describe(offset) +
+                     " run past the end of " + viewWhere + " (" + std::to_string(viewLength) + " bytes; truncated)");
+            v.count = size_t(count);
+            v.stride = size_t(stride);
+            v.data = count > 0 ? bytes.data + offset : nullptr;  // an empty accessor's offset is unchecked
         }
-        const uint64_t view = uintField(a, "bufferView", v.where);
-        const std::string viewWhere = at("bufferViews", view);
-        const json& bv = element("bufferViews", view, v.where);
-        const uint64_t viewOffset = uintField(bv, "byteOffset", viewWhere, 0);
-        const uint64_t viewLength = uintField(bv, "byteLength", viewWhere);
-        const uint64_t stride = uintField(bv, "byteStride", viewWhere, elementSize);
-        const std::vector<uint8_t>& buf = buffer(uintField(bv, "buffer", viewWhere), viewWhere);
-        if (viewOffset > buf.size() || viewLength > buf.size() - viewOffset)
-            fail(viewWhere + ": bytes " + std::to_string(viewOffset) + ".." + std::to_string(viewOffset + viewLength) +
-                 " lie outside its buffer of " + std::to_string(buf.size()) + " bytes (truncated)");
-        if (stride < elementSize || stride > 255)
-            fail(viewWhere + ".byteStride: " + std::to_string(stride) + " does not fit " + v.where + "'s " +
-                 std::to_string(elementSize) + "-byte elements");
-        const uint64_t offset = uintField(a, "byteOffset", v.where, 0);
-        // Bounding count and offset by the view length first keeps the product below 2^64.
-        if (count > 0 && (offset > viewLength || count > viewLength || offset + (count - 1) * stride + elementSize > viewLength))
-            fail(v.where + ": " + std::to_string(count) + " elements from byte offset " +
-                 std::to_string(viewOffset + offset) + " of " + at("buffers", uintField(bv, "buffer", viewWhere)) +
-                 " run past the end of " + viewWhere + " (" + std::to_string(viewLength) + " bytes; truncated)");
-        v.count = size_t(count);
-        v.stride = size_t(stride);
-        v.data = buf.data() + viewOffset + offset;
+        if (const json* sparse = member(a, "sparse")) applySparse(*sparse, v, elementSize);
         return v;
     }
 
+    // A sparse accessor: its base (or zeros) copied, then the listed elements replaced.
+    // The copy is no larger than the base view or the 2^24 elements of an accessor
+    // without one; indices must increase strictly and stay below the accessor's count.
+    void applySparse(const json& sparse, AccessorView& v, size_t elementSize) {
+        const std::string sw = v.where + ".sparse";
+        if (!sparse.is_object()) fail(sw + ": object expected");
+        const uint64_t n = uintField(sparse, "count", sw);
+        if (n == 0) fail(sw + ".count: at least 1 expected");
+        if (n > v.count)
+            fail(sw + ".count: " + std::to_string(n) + " substitutions for " + std::to_string(v.count) + " elements");
+        const json* indices = member(sparse, "indices");
+        const json* values = member(sparse, "values");
+        if (!indices || !indices->is_object()) fail(sw + ".indices: object expected");
+        if (!values || !values->is_object()) fail(sw + ".values: object expected");
+        const uint64_t indexType = uintField(*indices, "componentType", sw + ".indices");
+        const size_t indexSize = indexType == 5121 ? 1 : indexType == 5123 ? 2 : indexType == 5125 ? 4 : 0;
+        if (!indexSize)
+            fail(sw + ".indices.componentType: " + std::to_string(indexType) +
+                 " is not 5121, 5123 or 5125 (UNSIGNED_BYTE, UNSIGNED_SHORT, UNSIGNED_INT)");
+        const uint8_t* index = sparseData(*indices, sw + ".indices", n, indexSize);
+        const uint8_t* value = sparseData(*values, sw + ".values", n, elementSize);
+
+        auto copy = std::make_shared<std::vector<uint8_t>>(v.count * elementSize, uint8_t(0));
+        for (size_t k = 0; v.data && k < v.count; ++k)
+            std::memcpy(copy->data() + k * elementSize, v.data + k * v.stride, elementSize);
+        uint32_t previous = 0;
+        for (size_t k = 0; k < n; ++k) {
+            const uint32_t e = readUint(index + k * indexSize, indexSize);
+            if (e >= v.count)
+                fail(sw + ".indices: index " + std::to_string(e) + " at element " + std::to_string(k) +
+                     " is out of range (" + v.where + " has " + std::to_string(v.count) + " elements)");
+            if (k > 0 && e <= previous)
+                fail(sw + ".indices: index " + std::to_string(e) + " at element " + std::to_string(k) +
+                     " does not follow " + std::to_string(previous) + " (sparse indices must increase strictly)");
+            std::memcpy(copy->data() + size_t(e) * elementSize, value + k * elementSize, elementSize);
+            previous = e;
+        }
+        v.owned = copy;
+        v.data = copy->data();
+        v.stride = elementSize;
+    }
+
+    // `n` tightly packed elements of `size` bytes of a sparse accessor's indices or values.
+    const uint8_t* sparseData(const json& part, const std::string& where, uint64_t n, size_t size) {
+        const uint64_t view = uintField(part, "bufferView", where);
+        const ViewBytes bytes = bufferView(view, where);
+        if (bytes.stride && *bytes.stride != size)
+            fail(at("bufferViews", view) + ".byteStride: " + std::to_string(*bytes.stride) + ", but " + where +
+                 " are tightly packed " + std::to_string(size) + "-byte elements");
+        const uint64_t offset = uintField(part, "byteOffset", where, 0);
+        // n is at most the accessor's count (2^24, or the base view's length) and size 16.
+        if (offset > bytes.length || n * size > bytes.length - offset)
+            fail(where + ": " + std::to_string(n) + " elements of " + std::to_string(size) + " bytes from " +
+                 bytes.describe(offset) + " run past the end of " + at("bufferViews", view) + " (" +
+                 std::to_string(bytes.length) + " bytes; truncated)");
+        return bytes.data + offset;
+    }
 
     // Nodes, their transforms and the forest they form. Checked here once so that every
     // traversal after is finite.
@@ -499,15 +749,24 @@ struct GltfDocument::Impl {
         const json* attributes = member(prim, "attributes");
         if (!attributes || !attributes->is_object() || !member(*attributes, "POSITION"))
             fail(where + ".attributes.POSITION is missing");
+        if (const json* ext = member(prim, "extensions"); ext && ext->is_object())
+            if (const json* draco = member(*ext, "KHR_draco_mesh_compression"))
+                return decodeDraco(prim, *draco, *attributes, where, mode, out);
         const AccessorView pos = accessor(uintField(*attributes, "POSITION", where + ".attributes"), where);
         if (pos.type != "VEC3") fail(pos.where + ": POSITION must be VEC3, not " + pos.type);
-        if (pos.componentType != 5126)
-            fail(pos.where + ": POSITION componentType " + std::to_string(pos.componentType) +
-                 " is not supported (5126 FLOAT expected; quantized positions of KHR_mesh_quantization are not read)");
+        // FLOAT, or the integer types of KHR_mesh_quantization (the dequantizing scale and
+        // offset, if any, are in the node transform, which the callers apply).
+        if (pos.componentType == 5125)
+            fail(pos.where + ": POSITION componentType 5125 (UNSIGNED_INT) is not allowed (FLOAT, or BYTE, UNSIGNED_BYTE, " +
+                 "SHORT, UNSIGNED_SHORT of KHR_mesh_quantization)");
+        const size_t size = componentSize(pos.componentType);
+        spend(pos.count, pos.where);
         out.positions.resize(pos.count, glm::dvec3(0.0));
         for (size_t k = 0; pos.data && k < pos.count; ++k) {
             const uint8_t* e = pos.data + k * pos.stride;
-            const glm::dvec3 p(readFloat(e), readFloat(e + 4), readFloat(e + 8));
+            const glm::dvec3 p(component(e, pos.componentType, pos.normalized),
+                               component(e + size, pos.componentType, pos.normalized),
+                               component(e + 2 * size, pos.componentType, pos.normalized));
             if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
                 fail(pos.where + ": POSITION " + std::to_string(k) + " is not finite (byte offset " +
                      std::to_string(k * pos.stride) + " in the accessor)");
@@ -520,6 +779,7 @@ struct GltfDocument::Impl {
             const size_t size = ix.componentType == 5121 ? 1 : ix.componentType == 5123 ? 2 : ix.componentType == 5125 ? 4 : 0;
             if (ix.type != "SCALAR" || !size)
                 fail(ix.where + ": indices must be SCALAR UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT");
+            spend(ix.count, ix.where);
             indices.resize(ix.count, 0);
             for (size_t k = 0; ix.data && k < ix.count; ++k) {
                 indices[k] = readUint(ix.data + k * ix.stride, size);
@@ -529,6 +789,7 @@ struct GltfDocument::Impl {
             }
         } else {
             if (pos.count > UINT32_MAX) fail(pos.where + ": too many vertices for 32-bit indices");
+            spend(pos.count, pos.where);
             indices.resize(pos.count);
             for (size_t k = 0; k < indices.size(); ++k) indices[k] = uint32_t(k);
         }
@@ -544,6 +805,97 @@ struct GltfDocument::Impl {
             for (size_t k = 0; k + 2 < n; ++k) out.triangles.push_back({v[k], v[k + 1 + k % 2], v[k + 2 - k % 2]});
         if (mode == 6)  // glTF spec: triangle k is {v[k + 1], v[k + 2], v[0]}
             for (size_t k = 0; k + 2 < n; ++k) out.triangles.push_back({v[k + 1], v[k + 2], v[0]});
+    }
+
+    // KHR_draco_mesh_compression: the primitive's positions and faces decoded by libdraco
+    // from the extension's bufferView; the primitive's accessors only state what the
+    // decoded data must be (their bufferViews, if any, hold an uncompressed fallback that
+    // is not read).
+    void decodeDraco(const json& prim, const json& ext, const json& attributes, const std::string& where, uint64_t mode,
+                     GltfPrimitive& out) {
+        const std::string dw = where + ".extensions.KHR_draco_mesh_compression";
+        if (!ext.is_object()) fail(dw + ": object expected");
+        // Draco decodes to triangles; a strip's index order is not kept in that form.
+        if (mode != 4) fail(where + ".mode: " + std::to_string(mode) + " with KHR_draco_mesh_compression is not supported (4 expected)");
+        const json* ids = member(ext, "attributes");
+        if (!ids || !ids->is_object() || !member(*ids, "POSITION")) fail(dw + ".attributes.POSITION is missing");
+        const uint64_t id = uintField(*ids, "POSITION", dw + ".attributes");
+        const uint64_t view = uintField(ext, "bufferView", dw);
+        const ViewBytes bytes = bufferView(view, dw);
+
+        // What the accessors say the decoded data is.
+        const uint64_t posIndex = uintField(attributes, "POSITION", where + ".attributes");
+        const std::string posWhere = at("accessors", posIndex);
+        const json& posAccessor = element("accessors", posIndex, where);
+        if (posAccessor.value("type", json()) != "VEC3") fail(posWhere + ": POSITION must be VEC3");
+        const uint64_t posCount = uintField(posAccessor, "count", posWhere);
+        std::optional<uint64_t> indexCount;
+        std::string indexWhere;
+        if (member(prim, "indices")) {
+            const uint64_t ix = uintField(prim, "indices", where);
+            indexWhere = at("accessors", ix);
+            indexCount = uintField(element("accessors", ix, where), "count", indexWhere);
+        }
+
+        std::unique_ptr<draco::Mesh> mesh;
+        try {
+            draco::DecoderBuffer buffer;
+            buffer.Init(reinterpret_cast<const char*>(bytes.data), size_t(bytes.length));
+            draco::Decoder decoder;
+            draco::StatusOr<std::unique_ptr<draco::Mesh>> decoded = decoder.DecodeMeshFromBuffer(&buffer);
+            if (!decoded.ok())
+                fail(dw + ": the Draco data of " + at("bufferViews", view) + " does not decode (" +
+                     decoded.status().error_msg_string() + ")");
+            mesh = std::move(decoded).value();
+        } catch (const std::bad_alloc&) {
+            fail(dw + ": the Draco data of " + at("bufferViews", view) + " does not decode (out of memory; corrupt?)");
+        } catch (const std::length_error&) {
+            fail(dw + ": the Draco data of " + at("bufferViews", view) + " does not decode (corrupt sizes)");
+        }
+        if (!mesh) fail(dw + ": the Draco data of " + at("bufferViews", view) + " holds no mesh");
+
+        const draco::PointAttribute* attribute = id <= UINT32_MAX ? mesh->GetAttributeByUniqueId(uint32_t(id)) : nullptr;
+        if (!attribute) fail(dw + ".attributes.POSITION: the Draco data has no attribute with unique id " + std::to_string(id));
+        if (attribute->num_components() != 3)
+            fail(dw + ".attributes.POSITION: the Draco attribute has " + std::to_string(attribute->num_components()) +
+                 " components (3 expected)");
+        const uint64_t points = mesh->num_points(), faces = mesh->num_faces();
+        if (points != posCount)
+            fail(posWhere + ".count: " + std::to_string(posCount) + ", but the Draco data of " + where + " has " +
+                 std::to_string(points) + " points");
+        if (indexCount && *indexCount != 3 * faces)
+            fail(indexWhere + ".count: " + std::to_string(*indexCount) + ", but the Draco data of " + where + " has " +
+                 std::to_string(faces) + " triangles");
+        // Decoder output is trusted no further than needed: value indices and the value
+        // buffer are checked before anything is read through them.
+        const int64_t valueBytes = int64_t(attribute->size()) * attribute->byte_stride();
+        if (!attribute->buffer() || attribute->byte_offset() < 0 ||
+            attribute->byte_stride() < int64_t(3 * draco::DataTypeLength(attribute->data_type())) ||
+            attribute->byte_offset() + valueBytes > int64_t(attribute->buffer()->data_size()) ||
+            (!attribute->is_mapping_identity() && attribute->indices_map_size() < points))
+            fail(dw + ": the Draco data of " + at("bufferViews", view) + " is inconsistent (attribute storage)");
+        spend(points + 3 * faces, where);
+        out.positions.resize(size_t(points));
+        for (uint32_t k = 0; k < points; ++k) {
+            const draco::AttributeValueIndex value = attribute->mapped_index(draco::PointIndex(k));
+            float p[3];
+            if (value.value() >= attribute->size() || !attribute->ConvertValue<float, 3>(value, p))
+                fail(dw + ": the Draco data of " + at("bufferViews", view) + " is inconsistent (point " +
+                     std::to_string(k) + ")");
+            if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+                fail(dw + ": POSITION " + std::to_string(k) + " is not finite");
+            out.positions[k] = glm::dvec3(p[0], p[1], p[2]);
+        }
+        out.triangles.reserve(size_t(faces));
+        for (uint32_t f = 0; f < faces; ++f) {
+            const draco::Mesh::Face& face = mesh->face(draco::FaceIndex(f));
+            std::array<uint32_t, 3> t{face[0].value(), face[1].value(), face[2].value()};
+            for (uint32_t c : t)
+                if (c >= points)
+                    fail(dw + ": triangle " + std::to_string(f) + " of the Draco data names point " + std::to_string(c) +
+                         " of " + std::to_string(points));
+            out.triangles.push_back(t);
+        }
     }
 
 };

@@ -42,6 +42,16 @@ double RowTransform::determinant() const {
     return a.x * (b.y * c.z - b.z * c.y) - a.y * (b.x * c.z - b.z * c.x) + a.z * (b.x * c.y - b.y * c.x);
 }
 
+bool RowTransform::isSingular() const {
+    // Scale-invariant: |det| divided by the product of the row lengths is 1 for orthogonal
+    // rows of any length and 0 for dependent ones (Hadamard's inequality). An absolute
+    // threshold on the determinant would refuse gltfpack's dequantization scales (1e-4 per
+    // axis, determinant 1e-13), which are valid and well conditioned.
+    const double lengths = glm::length(rows[0]) * glm::length(rows[1]) * glm::length(rows[2]);
+    const double det = determinant();
+    return !(std::isfinite(det) && lengths > 0.0 && std::abs(det) > 1e-9 * lengths);
+}
+
 std::optional<ChunkCoord> parseChunkName(const std::string& fileName) {
     // Exactly 8 hex digits, 'o', ".chunk".
     if (fileName.size() != 15 || fileName.compare(8, 7, "o.chunk") != 0) return std::nullopt;
@@ -342,9 +352,11 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
                     if (Status s = parseVec3(path, re, o.transform.rows[size_t(r)], maxAbs); !s)
                         skip(re->GetLineNum(), s.error().message);
                 }
-                double det = o.transform.determinant();
-                if (!o.skipped && !(std::abs(det) > 1e-12))
-                    skip(c->GetLineNum(), "singular transform (determinant " + formatNumber(det) + ")");
+                if (!o.skipped && o.transform.isSingular())
+                    skip(c->GetLineNum(), "singular transform (determinant " + formatNumber(o.transform.determinant()) +
+                                              ", rows of lengths " + formatNumber(glm::length(o.transform.rows[0])) + ", " +
+                                              formatNumber(glm::length(o.transform.rows[1])) + ", " +
+                                              formatNumber(glm::length(o.transform.rows[2])) + ")");
             }
         }
         if (o.resource.empty()) skip(o.line, "<" + n + "> has no <resource>");

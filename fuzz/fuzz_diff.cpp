@@ -1,16 +1,30 @@
-// Fuzz target: results JSON files as `shadowcull diff` reads them. The reader is internal
-// to cli/diff.cpp, so the whole command runs (runDiff), with the HTML and JSON reports
-// written too (they format what was read). Input: old.json, then new.json, split by
-// kFuzzSeparator (fuzz_support.h); without a second part both sides are the same file.
+// Fuzz target: results JSON files as `shadowcull diff` reads them. The reader is
+// core/results_file.h (parseResults), the one reader of the format; the whole command runs
+// (runDiff), with the HTML and JSON reports written too (they format what was read). Each
+// file that parses must also survive the writer: written, parsed again and written again,
+// it gives the same bytes (merge and export will rewrite what they read). Input: old.json,
+// then new.json, split by kFuzzSeparator (fuzz_support.h); without a second part both
+// sides are the same file.
 
+#include <cstdlib>
 #include <sstream>
 
 #include "cli/diff.h"
+#include "core/results_file.h"
 #include "fuzz/fuzz_support.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::vector<std::string> parts = splitInput(data, size, 2);
     if (parts.size() == 1) parts.push_back(parts[0]);
+    for (const std::string& part : parts) {
+        const shadowcull::Expected<shadowcull::results::ResultsFile> file =
+            shadowcull::results::parseResults("fuzz.json", part);
+        if (!file) continue;
+        const std::string once = shadowcull::results::writeResults(*file);
+        const shadowcull::Expected<shadowcull::results::ResultsFile> again =
+            shadowcull::results::parseResults("written.json", once);
+        if (!again || shadowcull::results::writeResults(*again) != once) std::abort();  // the writer lost something
+    }
     const std::vector<std::string> paths = writeFiles(parts, {"old.json", "new.json"});
     std::ostringstream out, err;
     (void)shadowcull::cli::runDiff({paths[0], paths[1], scratchDir() + "/report.html", scratchDir() + "/report.json"},

@@ -6,8 +6,13 @@ fuzz/fuzz_support.h. The results JSON seeds of `diff` come from real bakes of th
 spaces, so the path of a built shadowcull is needed for them:
 
     fuzz/make_seeds.py [build/bin/shadowcull]
+
+The glTF seeds of EXT_meshopt_compression are made with Debian's libmeshoptimizer (through
+ctypes) and gltfpack; without them those seeds are kept as they are.
 """
 import base64
+import ctypes
+import ctypes.util
 import json
 import pathlib
 import shutil
@@ -75,15 +80,18 @@ class Gltf:
         fmt = {5121: "<B", 5123: "<H", 5125: "<I"}[component]
         return self.accessor(self.view(b"".join(struct.pack(fmt, i) for i in ix)), component, len(ix), "SCALAR")
 
+    extra_buffers = []  # after buffer 0, e.g. an EXT_meshopt_compression fallback buffer
+
     def gltf(self, uri=None):
         d = dict(self.doc)
         d["buffers"] = [{"byteLength": len(self.bin),
                          "uri": uri or "data:application/octet-stream;base64," + base64.b64encode(bytes(self.bin)).decode()}]
+        d["buffers"] += self.extra_buffers
         return json.dumps(d, indent=1).encode()
 
     def glb(self):
         d = dict(self.doc)
-        d["buffers"] = [{"byteLength": len(self.bin)}]
+        d["buffers"] = [{"byteLength": len(self.bin)}] + self.extra_buffers
         text = json.dumps(d).encode()
         text += b" " * (-len(text) % 4)
         data = bytes(self.bin) + b"\0" * (-len(self.bin) % 4)
@@ -127,6 +135,144 @@ def gltf_strided():
     g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": pos}, "indices": g.indices([0, 1, 2, 0, 2, 3])}]})
     g.doc["nodes"].append({"mesh": 0})
     return g
+
+
+def gltf_quantized():
+    """KHR_mesh_quantization: unnormalized UNSIGNED_SHORT positions dequantized by the node
+    (as gltfpack writes them), normalized BYTE and SHORT positions, 4- and 8-byte strides."""
+    g = Gltf()
+    ushort = g.accessor(g.view(b"".join(struct.pack("<4H", *p, 0) for p in [(0, 0, 0), (16383, 0, 0), (0, 16383, 0)]), 8),
+                        5123, 3, "VEC3")
+    byte = g.accessor(g.view(b"".join(struct.pack("<4b", *p, 0) for p in [(-128, 0, 0), (127, 0, 0), (127, 127, -5)]), 4),
+                      5120, 3, "VEC3")
+    g.doc["accessors"][byte]["normalized"] = True
+    short = g.accessor(g.view(b"".join(struct.pack("<4h", *p, 0) for p in [(0, 0, 0), (32767, 0, 0), (0, -32767, 100)]), 8),
+                       5122, 3, "VEC3")
+    g.doc["accessors"][short]["normalized"] = True
+    g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": ushort}}]})
+    g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": byte}, "indices": g.indices([0, 1, 2], 5121)},
+                                           {"attributes": {"POSITION": short}}]})
+    s = 2 / 16383
+    g.doc["nodes"] = [{"mesh": 0, "translation": [-1, 0, 2], "scale": [s, s, s]}, {"mesh": 1}]
+    g.doc["extensionsUsed"] = g.doc["extensionsRequired"] = ["KHR_mesh_quantization"]
+    return g
+
+
+def gltf_sparse():
+    """Sparse accessors: positions over a base view (UNSIGNED_BYTE indices), indices over a
+    base view (UNSIGNED_SHORT indices), positions without a bufferView (UNSIGNED_INT indices)."""
+    g = Gltf()
+    pos = g.positions(QUAD)
+    g.doc["accessors"][pos]["sparse"] = {
+        "count": 2, "indices": {"bufferView": g.view(bytes([1, 3])), "componentType": 5121},
+        "values": {"bufferView": g.view(struct.pack("<6f", 1, 0, 1, 0, 1, 1))}}
+    ix = g.indices([0, 1, 2, 0, 2, 2], 5123)
+    g.doc["accessors"][ix]["sparse"] = {
+        "count": 1, "indices": {"bufferView": g.view(struct.pack("<H", 5)), "componentType": 5123},
+        "values": {"bufferView": g.view(struct.pack("<H", 3))}}
+    g.doc["accessors"].append({"componentType": 5126, "count": 3, "type": "VEC3", "sparse": {
+        "count": 2, "indices": {"bufferView": g.view(struct.pack("<2I", 1, 2)), "componentType": 5125},
+        "values": {"bufferView": g.view(struct.pack("<6f", 1, 0, 0, 0, 1, 0)), "byteOffset": 0}}})
+    zeros = len(g.doc["accessors"]) - 1
+    g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": pos}, "indices": ix},
+                                           {"attributes": {"POSITION": zeros}}]})
+    g.doc["nodes"].append({"mesh": 0})
+    return g
+
+
+def meshoptimizer():
+    """Debian's libmeshoptimizer through ctypes, or None."""
+    name = ctypes.util.find_library("meshoptimizer")
+    if not name:
+        return None
+    lib = ctypes.CDLL(name)
+    size_t, p = ctypes.c_size_t, ctypes.c_void_p
+    for f, args in {"meshopt_encodeVertexBuffer": [p, size_t, p, size_t, size_t], "meshopt_encodeVertexBufferBound": [size_t, size_t],
+                    "meshopt_encodeIndexBuffer": [p, size_t, p, size_t], "meshopt_encodeIndexBufferBound": [size_t, size_t],
+                    "meshopt_encodeIndexSequence": [p, size_t, p, size_t], "meshopt_encodeIndexSequenceBound": [size_t, size_t]}.items():
+        getattr(lib, f).argtypes = args
+        getattr(lib, f).restype = size_t
+    lib.meshopt_encodeFilterExp.argtypes = [p, size_t, size_t, ctypes.c_int, p]
+    lib.meshopt_encodeFilterExp.restype = None
+    return lib
+
+
+def gltf_meshopt_filters(lib):
+    """EXT_meshopt_compression made with libmeshoptimizer: float positions with the
+    EXPONENTIAL filter (ATTRIBUTES), a triangle list (TRIANGLES, 16-bit) and a strip
+    (INDICES, 32-bit); the views on a fallback buffer without data."""
+    g = Gltf()
+    fallback = [0]
+
+    def compressed(raw, count, stride, mode, filter=None):
+        if mode == "ATTRIBUTES":
+            out = ctypes.create_string_buffer(lib.meshopt_encodeVertexBufferBound(count, stride))
+            n = lib.meshopt_encodeVertexBuffer(out, len(out), raw, count, stride)
+        else:
+            ix = (ctypes.c_uint * count)(*[int.from_bytes(raw[k * stride:(k + 1) * stride], "little") for k in range(count)])
+            bound = getattr(lib, "meshopt_encodeIndexBufferBound" if mode == "TRIANGLES" else "meshopt_encodeIndexSequenceBound")
+            encode = getattr(lib, "meshopt_encodeIndexBuffer" if mode == "TRIANGLES" else "meshopt_encodeIndexSequence")
+            out = ctypes.create_string_buffer(bound(count, max(ix) + 1))
+            n = encode(out, len(out), ix, count)
+        while len(g.bin) % 4:
+            g.bin.append(0)
+        ext = {"buffer": 0, "byteOffset": len(g.bin), "byteLength": n, "byteStride": stride, "count": count, "mode": mode}
+        if filter:
+            ext["filter"] = filter
+        g.bin += out.raw[:n]
+        v = {"buffer": 1, "byteOffset": fallback[0], "byteLength": count * stride, "extensions": {"EXT_meshopt_compression": ext}}
+        if mode == "ATTRIBUTES":
+            v["byteStride"] = stride
+        fallback[0] += (count * stride + 3) // 4 * 4
+        g.doc["bufferViews"].append(v)
+        return len(g.doc["bufferViews"]) - 1
+
+    floats = [c for p in QUAD for c in p]
+    encoded = ctypes.create_string_buffer(len(floats) * 4)
+    lib.meshopt_encodeFilterExp(encoded, len(QUAD), 12, 15, (ctypes.c_float * len(floats))(*floats))
+    pos = g.accessor(compressed(encoded.raw, len(QUAD), 12, "ATTRIBUTES", "EXPONENTIAL"), 5126, len(QUAD), "VEC3")
+    tri = g.accessor(compressed(struct.pack("<6H", 0, 1, 2, 0, 2, 3), 6, 2, "TRIANGLES"), 5123, 6, "SCALAR")
+    strip = g.accessor(compressed(struct.pack("<4I", 0, 1, 3, 2), 4, 4, "INDICES"), 5125, 4, "SCALAR")
+    g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": pos}, "indices": tri},
+                                           {"attributes": {"POSITION": pos}, "indices": strip, "mode": 5}]})
+    g.doc["nodes"].append({"mesh": 0})
+    g.doc["extensionsUsed"] = g.doc["extensionsRequired"] = ["EXT_meshopt_compression"]
+    g.extra_buffers = [{"byteLength": fallback[0], "extensions": {"EXT_meshopt_compression": {"fallback": True}}}]
+    return g
+
+
+# A 5 x 4 wavy grid (20 points, 24 faces, POSITION unique id 0) as libdraco 1.5.5's encoder
+# writes it (edgebreaker, speed 0, 12-bit positions); kept as bytes since Python has no
+# Draco encoder here.
+DRACO_GRID = bytes.fromhex(
+    "445241434f02020101000000141800180300085ff7f4a96af5a902ff011101ff000101000903000002010101000d0395"
+    "2913350303350369066906350307effc2cc899ff8001f8ff28d2ffff63c7ff00b80e020020404002c013001000000102"
+    "00b01d100000000000ff0f000000000000000000005f7d68be000080400c")
+
+
+def gltf_draco():
+    """KHR_draco_mesh_compression: the primitive's accessors state the decoded counts."""
+    g = Gltf()
+    view = g.view(DRACO_GRID)
+    g.doc["accessors"] = [{"componentType": 5126, "count": 20, "type": "VEC3"},
+                          {"componentType": 5125, "count": 72, "type": "SCALAR"}]
+    g.doc["meshes"].append({"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "extensions": {
+        "KHR_draco_mesh_compression": {"bufferView": view, "attributes": {"POSITION": 0}}}}]})
+    g.doc["nodes"].append({"mesh": 0})
+    g.doc["extensionsUsed"] = g.doc["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+    return g
+
+
+def gltfpack(g, *flags):
+    """What gltfpack (Debian package gltfpack) makes of `g`, as GLB bytes; None without it."""
+    if not shutil.which("gltfpack"):
+        return None
+    with tempfile.TemporaryDirectory() as t:
+        tmp = pathlib.Path(t)
+        (tmp / "in.gltf").write_bytes(g.gltf())
+        subprocess.run(["gltfpack", "-i", str(tmp / "in.gltf"), "-o", str(tmp / "out.glb"), *flags],
+                       check=True, stdout=subprocess.DEVNULL)
+        return (tmp / "out.glb").read_bytes()
 
 
 # ---------------------------------------------------------------------------------------
@@ -222,6 +368,21 @@ def main():
     external = gltf_three_primitives()
     seeds["gltf"]["external.gltf"] = join(external.gltf("b.bin"), bytes(external.bin))
     seeds["gltf"]["strided.glb"] = gltf_strided().glb()
+    seeds["gltf"]["quantized.gltf"] = gltf_quantized().gltf()
+    seeds["gltf"]["sparse.glb"] = gltf_sparse().glb()
+    seeds["gltf"]["draco.glb"] = gltf_draco().glb()
+    # Made with libmeshoptimizer and gltfpack; without them, kept as they are.
+    lib = meshoptimizer()
+    made = {"meshopt_filters.glb": gltf_meshopt_filters(lib).glb() if lib else None,
+            "gltfpack_c.glb": gltfpack(gltf_three_primitives(), "-c"),
+            "gltfpack_cf_vpn.glb": gltfpack(gltf_three_primitives(), "-cf", "-vpn")}
+    for name, data in made.items():
+        old = CORPUS / "gltf" / name
+        if data is None:
+            print(f"no libmeshoptimizer or gltfpack: {name} left as it is", file=sys.stderr)
+            data = old.read_bytes() if old.exists() else None
+        if data is not None:
+            seeds["gltf"][name] = data
 
     seeds["terrain"]["small.terrain"] = join(terrain_xml("h.png", -10, 20), FLAT3)
     seeds["terrain"]["flat2.terrain"] = join(terrain_xml("h.png", 5, 5), png16(2, [0, 0, 0, 0]))

@@ -36,7 +36,7 @@ declare -A max_len=([space]=4096 [chunk]=8192 [model]=8192 [obj]=8192 [gltf]=819
 # Dictionaries (fuzz/dict/): the element names, keys and keywords each reader compares against.
 declare -A dicts=([space]="xml space" [chunk]="xml chunk" [model]="xml model obj gltf split" [obj]="obj split"
                   [gltf]="gltf split" [terrain]="xml png split" [diff]="results split"
-                  [bake]="xml space chunk obj png split")
+                  [bake]="xml space chunk obj png split" [import]="gltf import split")
 
 scratch=$(mktemp -d /dev/shm/shadowcull-fuzz.XXXXXX 2>/dev/null || mktemp -d)
 trap 'rm -rf "$scratch"' EXIT

@@ -7,6 +7,7 @@ packages=(
   libglm-dev libtinyxml2-dev libpng-dev libtbb-dev libembree-dev libcgal-dev
   libosmesa6-dev mesa-common-dev
   nlohmann-json3-dev libcli11-dev
+  libmeshoptimizer-dev gltfpack libdraco-dev
   googletest libgtest-dev libbenchmark-dev
   "$@"
 )

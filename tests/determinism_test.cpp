@@ -172,7 +172,7 @@ TEST(Determinism, EveryStageCountsTheSameInEveryRun) {
             Expected<cli::BakeResult> r = cli::runBake(opt);
             ASSERT_TRUE(r) << r.error().what();
             counters.push_back(stageCounters(*r));
-            jsons.push_back(cli::resultsJson(*r).dump(1));
+            jsons.push_back(results::writeResults(cli::resultsFile(*r)));
         }
     EXPECT_NE(counters[0].find("raycast (gpu pixels)"), std::string::npos) << counters[0];
     for (size_t k = 1; k < counters.size(); ++k) {

@@ -34,7 +34,7 @@ fs::path bakeToJson(const SpaceBuilder& b, const fs::path& dir, const std::strin
     const fs::path space = dir / (name + "-space");
     b.write(space.string());
     const fs::path json = dir / (name + ".json");
-    writeText(json, cli::resultsJson(bake(space, useGeometry)).dump(1) + "\n");
+    writeText(json, results::writeResults(cli::resultsFile(bake(space, useGeometry))));
     return json;
 }
 
@@ -266,7 +266,7 @@ TEST(Diff, BakedSpaceDirectories) {
     EXPECT_NE(r.out.find("evidence: evidence unavailable (both are baked spaces)"), std::string::npos) << r.out;
 
     // Evidence on one side only: still unavailable for the comparison, and said which.
-    writeText(dir / "raycast-only.json", cli::resultsJson(bake(a, false)).dump(1));
+    writeText(dir / "raycast-only.json", results::writeResults(cli::resultsFile(bake(a, false))));
     const DiffRun half = diff(dir / "raycast-only.json", b);
     EXPECT_EQ(half.code, cli::kDiffChanged);
     EXPECT_NE(half.out.find("old: undecided, kept as 1\n      new: bit 0 (mask only, no evidence)\n"
@@ -276,7 +276,7 @@ TEST(Diff, BakedSpaceDirectories) {
 
     EXPECT_EQ(diff(b, b).code, cli::kDiffSame);
     // A results file against the space it describes: same bits.
-    writeText(dir / "full.json", cli::resultsJson(bake(b)).dump(1));
+    writeText(dir / "full.json", results::writeResults(cli::resultsFile(bake(b))));
     const DiffRun mixed = diff(dir / "full.json", b);
     EXPECT_EQ(mixed.code, cli::kDiffSame) << mixed.out;
 

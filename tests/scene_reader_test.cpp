@@ -294,6 +294,37 @@ TEST(ChunkReader, BadObjectsAreSkippedWithLine) {
     for (const Diagnostic& d : diags) EXPECT_NE(d.message.find("skipped"), std::string::npos);
 }
 
+// The singularity test is scale-invariant: gltfpack's dequantization scale (about 4e-5 per
+// axis, determinant 6e-14) is a valid transform; rows that are nearly dependent at any
+// scale are not.
+TEST(ChunkReader, SingularTransformTestIsScaleInvariant) {
+    fs::path dir = freshTestDir();
+    writeText(dir / "00000000o.chunk", R"(<chunk>
+  <model>
+    <resource> a.obj </resource>
+    <transform> <row0> 3.9e-5 0 0 </row0> <row1> 0 3.9e-5 0 </row1> <row2> 0 0 3.9e-5 </row2> <row3> 1 2 3 </row3> </transform>
+  </model>
+  <model>
+    <resource> a.obj </resource>
+    <transform> <row0> 1000 0 0 </row0> <row1> 1000 0.0000001 0 </row1> <row2> 0 0 1000 </row2> <row3> 0 0 0 </row3> </transform>
+  </model>
+  <model>
+    <resource> a.obj </resource>
+    <transform> <row0> 0 0 0 </row0> <row1> 0 1 0 </row1> <row2> 0 0 1 </row2> <row3> 0 0 0 </row3> </transform>
+  </model>
+</chunk>
+)");
+    std::vector<Diagnostic> diags;
+    auto cf = readChunkFile((dir / "00000000o.chunk").string(), {0, 0}, diags);
+    ASSERT_TRUE(cf) << cf.error().what();
+    ASSERT_EQ(cf->objects.size(), 3u);
+    EXPECT_FALSE(cf->objects[0].skipped) << cf->objects[0].skipReason;
+    EXPECT_TRUE(cf->objects[1].skipped);
+    EXPECT_TRUE(cf->objects[2].skipped);
+    ASSERT_EQ(diags.size(), 2u);
+    for (const Diagnostic& d : diags) EXPECT_NE(d.message.find("singular"), std::string::npos) << d.what();
+}
+
 TEST(ChunkReader, MalformedXmlStopsWithLine) {
     fs::path dir = freshTestDir();
     writeText(dir / "00000000o.chunk", "<chunk>\n  <model>\n    <resource> a.obj </resourc>\n  </model>\n</chunk>\n");

@@ -1,0 +1,330 @@
+#include "core/results_file.h"
+
+#include <algorithm>
+#include <limits>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "core/file_read.h"
+
+namespace shadowcull::results {
+
+namespace {
+
+using nlohmann::json;
+
+// ---------------------------------------------------------------------------------------
+// Writing
+
+json vecJson(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
+
+json bitJson(const BitRecord& b) {
+    json j;
+    j["light"] = b.light;
+    j["bit"] = b.bit;
+    j["verdict"] = b.verdict;
+    // Left out when empty, as the bake always has: an undecided bit has neither.
+    if (!b.stage.empty()) j["stage"] = b.stage;
+    if (!b.reason.empty()) j["reason"] = b.reason;
+    if (b.witness) {
+        const WitnessRecord& w = *b.witness;
+        j["witness"] = {{"origin", vecJson(w.origin)}, {"direction", vecJson(w.direction)},
+                        {"p", vecJson(w.p)},           {"q", vecJson(w.q)},
+                        {"receiver", w.receiver}};
+    }
+    return j;
+}
+
+json objectJson(const ObjectRecord& o) {
+    json j;
+    j["element"] = o.element;
+    j["kind"] = o.kind;
+    if (!o.uuid.empty()) j["uuid"] = o.uuid;
+    if (o.skipped) {
+        // The bake could not use it: no verdicts to give, and no mask was written.
+        j["skipped"] = true;
+        return j;
+    }
+    json groups = json::array();
+    for (const GroupRecord& g : o.groups) {
+        json bits = json::array();
+        for (const BitRecord& b : g.lights) bits.push_back(bitJson(b));
+        groups.push_back({{"group", g.group}, {"mask", g.mask}, {"lights", std::move(bits)}});
+    }
+    j["mask"] = o.mask;
+    j["groups"] = std::move(groups);
+    return j;
+}
+
+// `text` (nlohmann's dump with indent 1, which never puts a raw newline inside a string)
+// moved right by `spaces`, as it would be printed nested that deep.
+std::string indented(const std::string& text, size_t spaces) {
+    const std::string pad(spaces, ' ');
+    std::string out = pad;
+    out.reserve(text.size() + text.size() / 8);
+    for (char c : text) {
+        out += c;
+        if (c == '\n') out += pad;
+    }
+    return out;
+}
+
+// ---------------------------------------------------------------------------------------
+// Reading
+
+// Thrown inside the parser only (never out of this file): one message, turned into an
+// Error with the file name and the JSON path where it happened.
+struct BadContent {
+    std::string message;
+};
+
+// nlohmann messages start with "[json.exception.type_error.302] "; the rest is the point.
+std::string jsonMessage(const std::exception& e) {
+    std::string w = e.what();
+    const size_t k = w.find("] ");
+    return k == std::string::npos ? w : w.substr(k + 2);
+}
+
+// An integer field: a JSON integer (neither 2.5 nor 1e308: converting those is undefined)
+// within T's range.
+template <class T>
+T integer(const json& o, const char* key) {
+    const json& v = o.at(key);
+    const std::string what = std::string("'") + key + "' ";
+    if (!v.is_number_integer()) throw BadContent{what + "must be an integer, not " + v.dump()};
+    using Limits = std::numeric_limits<T>;
+    if (v.is_number_unsigned()) {
+        const uint64_t u = v.get<uint64_t>();
+        if (u > uint64_t(Limits::max())) throw BadContent{what + v.dump() + " is out of range"};
+        return T(u);
+    }
+    const int64_t s = v.get<int64_t>();
+    if (s < int64_t(Limits::min()) || (s > 0 && uint64_t(s) > uint64_t(Limits::max())))
+        throw BadContent{what + v.dump() + " is out of range"};
+    return T(s);
+}
+
+glm::dvec3 readVec(const json& a) {
+    if (!a.is_array() || a.size() != 3) throw BadContent{"expected [x, y, z]"};
+    return {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
+}
+
+// The fields are read in the order `shadowcull diff` always read them, so that a file with
+// several faults is reported by the first, as before.
+BitRecord readBit(const json& jl, int light) {
+    BitRecord b;
+    b.light = light;
+    b.bit = integer<int>(jl, "bit");
+    b.verdict = jl.at("verdict").get<std::string>();
+    b.stage = jl.value("stage", std::string());
+    b.reason = jl.value("reason", std::string());
+    if (jl.contains("witness")) {
+        const json& w = jl["witness"];
+        b.witness = WitnessRecord{readVec(w.at("origin")), readVec(w.at("direction")), readVec(w.at("p")),
+                                  readVec(w.at("q")), w.value("receiver", std::string())};
+    }
+    return b;
+}
+
+// One object. `where` is kept pointing at the part being read, so that an error names it
+// ("chunks[0].objects[2].groups[1]").
+ObjectRecord readObject(const json& jo, const std::string& at, std::string& where) {
+    where = at;
+    ObjectRecord o;
+    o.element = integer<int>(jo, "element");
+    o.kind = jo.at("kind").get<std::string>();
+    o.uuid = jo.value("uuid", std::string());
+    o.skipped = jo.value("skipped", false);
+    if (o.skipped) return o;
+    o.mask = integer<uint32_t>(jo, "mask");
+    for (const json& jg : jo.at("groups")) {
+        const std::string ga = at + ".groups[" + std::to_string(o.groups.size()) + "]";
+        where = ga;
+        if (integer<size_t>(jg, "group") != o.groups.size()) throw BadContent{"groups out of order"};
+        GroupRecord g;
+        g.group = int(o.groups.size());
+        g.mask = integer<uint32_t>(jg, "mask");
+        for (const json& jl : jg.at("lights")) {
+            where = ga + ".lights[" + std::to_string(g.lights.size()) + "]";
+            if (integer<size_t>(jl, "light") != g.lights.size() + 1) throw BadContent{"lights out of order"};
+            g.lights.push_back(readBit(jl, int(g.lights.size()) + 1));
+        }
+        o.groups.push_back(std::move(g));
+    }
+    return o;
+}
+
+Summary readSummary(const json& js) {
+    Summary s;
+    s.chunks = integer<uint64_t>(js, "chunks");
+    s.groups = integer<uint64_t>(js, "groups");
+    s.bits = integer<uint64_t>(js, "bits");
+    s.kept = integer<uint64_t>(js, "kept");
+    s.culled = integer<uint64_t>(js, "culled");
+    s.provedKept = integer<uint64_t>(js, "provedKept");
+    s.undecided = integer<uint64_t>(js, "undecided");
+    const json& by = js.at("culledBy");
+    if (!by.is_object()) throw BadContent{"'culledBy' must be an object, not " + by.dump()};
+    for (auto it = by.begin(); it != by.end(); ++it) s.culledBy[it.key()] = integer<uint64_t>(by, it.key().c_str());
+    return s;
+}
+
+Error badInput(const std::string& path, int line, std::string message) {
+    return makeError(ErrorKind::BadInput, path, line, std::move(message));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// Writing
+
+// Pretty-printed with an indent of one space. Text that is not valid UTF-8 (a space path
+// or a file name in Latin-1) is written with U+FFFD in place of the bad bytes: the file
+// stays valid JSON, and the bake does not die at its very end (nlohmann throws otherwise).
+std::string dumped(const json& j) { return j.dump(1, ' ', false, json::error_handler_t::replace); }
+
+std::string chunkJson(const ChunkRecord& chunk) {
+    json j;
+    j["chunk"] = chunk.chunk;
+    j["simulated"] = chunk.simulated;
+    json objects = json::array();
+    for (const ObjectRecord& o : chunk.objects) objects.push_back(objectJson(o));
+    j["objects"] = std::move(objects);
+    // A chunk sits two levels deep: in the top-level object's "chunks" array.
+    return indented(dumped(j), 2);
+}
+
+std::string resultsHead() { return "{\n \"chunks\": ["; }
+
+std::string resultsTail(const ResultsFile& file, bool anyChunk) {
+    json j;
+    j["format"] = kFormat;
+    j["version"] = file.version;
+    j["space"] = file.space;
+    json lights = json::array();
+    for (const LightRecord& L : file.lights)
+        lights.push_back({{"index", L.index}, {"bit", L.bit}, {"name", L.name}, {"type", L.type}});
+    j["lights"] = std::move(lights);
+    const Summary& s = file.summary;
+    json culledBy = json::object();
+    for (const auto& [stage, n] : s.culledBy) culledBy[stage] = n;
+    j["summary"] = {{"chunks", s.chunks},      {"groups", s.groups},         {"bits", s.bits},
+                    {"kept", s.kept},          {"culled", s.culled},         {"provedKept", s.provedKept},
+                    {"undecided", s.undecided}, {"culledBy", std::move(culledBy)}};
+    j["warnings"] = file.warnings;
+    // Every other key sorts after "chunks" (nlohmann's json keeps keys sorted), so the rest
+    // of the file is this object's dump without its opening brace.
+    const std::string rest = dumped(j);
+    return std::string(anyChunk ? "\n ]" : "]") + ",\n" + rest.substr(2) + "\n";
+}
+
+std::string writeResults(const ResultsFile& file) {
+    std::string text = resultsHead();
+    for (size_t k = 0; k < file.chunks.size(); ++k) {
+        text += k == 0 ? "\n" : ",\n";
+        text += chunkJson(file.chunks[k]);
+    }
+    return text + resultsTail(file, !file.chunks.empty());
+}
+
+Summary summarize(const std::vector<ChunkRecord>& chunks) {
+    Summary s;
+    s.chunks = chunks.size();
+    for (const ChunkRecord& c : chunks)
+        for (const ObjectRecord& o : c.objects) {
+            if (o.skipped) continue;
+            s.groups += o.groups.size();
+            for (const GroupRecord& g : o.groups)
+                for (const BitRecord& b : g.lights) {
+                    ++s.bits;
+                    if (b.verdict == "culled") {
+                        ++s.culled;
+                        ++s.culledBy[b.stage];
+                    } else {
+                        ++s.kept;  // written 1: with a witness, or because nobody could decide
+                        ++(b.verdict == "kept" ? s.provedKept : s.undecided);
+                    }
+                }
+        }
+    return s;
+}
+
+// ---------------------------------------------------------------------------------------
+// Reading
+
+Expected<ResultsFile> readResultsFile(const std::string& path) {
+    Expected<std::string> text = readRegularFile(path, "results file");
+    if (!text) return text.error();
+    return parseResults(path, *text);
+}
+
+Expected<ResultsFile> parseResults(const std::string& path, const std::string& text) {
+    json j;
+    try {
+        j = json::parse(text);
+    } catch (const json::parse_error& e) {
+        // e.byte is 1-based and points at the character that broke the parse.
+        const size_t at = std::min(text.size(), e.byte > 0 ? size_t(e.byte - 1) : size_t(0));
+        const size_t line = 1 + size_t(std::count(text.begin(), text.begin() + std::ptrdiff_t(at), '\n'));
+        std::string msg = jsonMessage(e);
+        if (size_t k = msg.find("column"); k != std::string::npos && msg.find(": ", k) != std::string::npos)
+            msg = msg.substr(msg.find(": ", k) + 2);
+        return badInput(path, int(std::min<size_t>(line, size_t(std::numeric_limits<int>::max()))),
+                        "malformed JSON: " + msg);
+    } catch (const json::exception& e) {
+        // A number too large for a double (1e400) is out_of_range, not a parse error.
+        return badInput(path, 0, "malformed JSON: " + jsonMessage(e));
+    }
+    if (!j.is_object() || !j.contains("format") || j["format"] != kFormat)
+        return badInput(path, 0,
+                        std::string("not a shadowcull results file (expected \"format\": \"") + kFormat + "\")");
+    ResultsFile f;
+    std::string where = "top level";
+    try {
+        f.version = integer<int>(j, "version");
+        if (f.version != kVersion)
+            throw BadContent{"unsupported version " + j["version"].dump() + " (this tool reads version " +
+                             std::to_string(kVersion) + ")"};
+        for (const json& L : j.at("lights")) {
+            where = "lights[" + std::to_string(f.lights.size()) + "]";
+            LightRecord r;
+            r.name = L.at("name").get<std::string>();
+            r.type = L.at("type").get<std::string>();
+            r.bit = L.contains("bit") ? integer<int>(L, "bit") : int(f.lights.size());
+            r.index = L.contains("index") ? integer<int>(L, "index") : int(f.lights.size()) + 1;
+            f.lights.push_back(std::move(r));
+        }
+        size_t ci = 0;
+        std::set<std::string> names;  // chunk names seen
+        for (const json& jc : j.at("chunks")) {
+            const std::string ca = "chunks[" + std::to_string(ci++) + "]";
+            where = ca;
+            ChunkRecord c;
+            c.chunk = jc.at("chunk").get<std::string>();
+            if (!names.insert(c.chunk).second) throw BadContent{"chunk " + c.chunk + " appears twice"};
+            if (jc.contains("simulated")) c.simulated = jc["simulated"].get<std::vector<std::string>>();
+            for (const json& jo : jc.at("objects"))
+                c.objects.push_back(readObject(jo, ca + ".objects[" + std::to_string(c.objects.size()) + "]", where));
+            f.chunks.push_back(std::move(c));
+        }
+        // What follows was never needed by diff: read after the chunks, so that a fault in
+        // them is still the one reported.
+        where = "top level";
+        if (j.contains("space")) f.space = j["space"].get<std::string>();
+        if (j.contains("warnings")) f.warnings = j["warnings"].get<std::vector<std::string>>();
+        if (j.contains("summary")) {
+            where = "summary";
+            f.summary = readSummary(j["summary"]);
+        } else {
+            f.summary = summarize(f.chunks);
+        }
+    } catch (const json::exception& e) {
+        return badInput(path, 0, "malformed results at " + where + ": " + jsonMessage(e));
+    } catch (const BadContent& e) {
+        return badInput(path, 0, "malformed results at " + where + ": " + e.message);
+    }
+    return f;
+}
+
+}  // namespace shadowcull::results
