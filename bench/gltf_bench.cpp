@@ -657,7 +657,7 @@ int main(int argc, char** argv) {
     // ---- Report (Markdown) ----
     std::printf("# gltf_bench\n\n");
     std::printf("`%s`: %s, %u hardware threads, %.1f GiB; load average %s before, %s after; %.0f s in all.\n"
-                "Binary: %s. Each figure is one run of the real CLI in its own process (peak RSS: wait4 ru_maxrss; "
+                "Binary: %s. Each run of the real CLI is its own process (peak RSS: wait4 ru_maxrss; "
                 "`shadowcull --help` alone peaks at %s).\n\n",
                 command.c_str(), cpuModel().c_str(), unsigned(sysconf(_SC_NPROCESSORS_ONLN)), memTotalGiB(), loadBefore.c_str(),
                 loadAfter.c_str(), total, cli.c_str(), mib(double(floor.maxRssKiB)).c_str());

@@ -21,15 +21,13 @@
 #include <new>
 #include <optional>
 
-#include <draco/compression/decode.h>
-#include <meshoptimizer.h>
-
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat3x3.hpp>
 #include <nlohmann/json.hpp>
 
 #include "core/file_read.h"
+#include "core/gltf_codecs.h"
 #include "core/format.h"
 #include "core/limits.h"
 
@@ -38,6 +36,13 @@ using nlohmann::json;
 
 namespace shadowcull {
 namespace {
+
+using gltf_codecs::component;
+using gltf_codecs::componentSize;
+using gltf_codecs::decodeBase64;
+using gltf_codecs::percentDecode;
+using gltf_codecs::readFloat;
+using gltf_codecs::readUint;
 
 // Thrown only inside this file and turned into an Error by the public methods: validation
 // is deeply nested and an exception keeps each check to one line.
@@ -56,48 +61,6 @@ void readFile(const fs::path& path, const std::string& what, std::vector<uint8_t
     Expected<std::string> text = readRegularFile(path.string(), what);
     if (!text) fail(what + " '" + path.string() + "': " + text.error().message, text.error().kind);
     out.assign(text->begin(), text->end());
-}
-
-// Little-endian reads that do not depend on host byte order or alignment.
-uint32_t readUint(const uint8_t* p, size_t bytes) {
-    uint32_t v = 0;
-    for (size_t k = 0; k < bytes; ++k) v |= uint32_t(p[k]) << (8 * k);
-    return v;
-}
-
-float readFloat(const uint8_t* p) {
-    uint32_t u = readUint(p, 4);
-    float f;
-    std::memcpy(&f, &u, 4);
-    return f;
-}
-
-bool decodeBase64(std::string_view s, std::vector<uint8_t>& out) {
-    uint32_t acc = 0;
-    int bits = 0;
-    size_t k = 0;
-    for (; k < s.size() && s[k] != '='; ++k) {
-        const char c = s[k];
-        int v = c >= 'A' && c <= 'Z' ? c - 'A' : c >= 'a' && c <= 'z' ? c - 'a' + 26 : c >= '0' && c <= '9' ? c - '0' + 52
-              : c == '+' ? 62 : c == '/' ? 63 : -1;
-        if (v < 0) return false;
-        acc = ((acc << 6) | uint32_t(v)) & 0xffffff;
-        if ((bits += 6) >= 8) out.push_back(uint8_t(acc >> (bits -= 8)));
-    }
-    return s.find_first_not_of('=', k) == std::string_view::npos;
-}
-
-std::string percentDecode(const std::string& s) {
-    std::string out;
-    for (size_t k = 0; k < s.size(); ++k) {
-        if (s[k] == '%' && k + 2 < s.size() && std::isxdigit((unsigned char)s[k + 1]) && std::isxdigit((unsigned char)s[k + 2])) {
-            out += char(std::stoi(s.substr(k + 1, 2), nullptr, 16));
-            k += 2;
-        } else {
-            out += s[k];
-        }
-    }
-    return out;
 }
 
 std::string at(const std::string& array, size_t i) { return gltfPath(array, i); }
@@ -185,33 +148,6 @@ struct ViewBytes {
         return "byte offset " + std::to_string(originOffset + offset) + " of " + origin;
     }
 };
-
-size_t componentSize(uint64_t componentType) {
-    return componentType == 5120 || componentType == 5121 ? 1
-         : componentType == 5122 || componentType == 5123 ? 2
-         : componentType == 5125 || componentType == 5126 ? 4 : 0;
-}
-
-// One component as a number. Integer types (KHR_mesh_quantization) are taken as they are,
-// or when normalized by the glTF 2.0 formulas: signed max(c / (2^(n-1) - 1), -1.0),
-// unsigned c / (2^n - 1).
-double component(const uint8_t* p, uint64_t componentType, bool normalized) {
-    switch (componentType) {
-    case 5120: {
-        const double c = double(int(p[0]) - (p[0] >= 0x80 ? 0x100 : 0));
-        return normalized ? std::max(c / 127.0, -1.0) : c;
-    }
-    case 5121: return normalized ? p[0] / 255.0 : double(p[0]);
-    case 5122: {
-        const uint32_t u = readUint(p, 2);
-        const double c = double(long(u) - (u >= 0x8000 ? 0x10000 : 0));
-        return normalized ? std::max(c / 32767.0, -1.0) : c;
-    }
-    case 5123: return normalized ? readUint(p, 2) / 65535.0 : double(readUint(p, 2));
-    case 5125: return double(readUint(p, 4));
-    default: return double(readFloat(p));
-    }
-}
 
 // The largest ratio of decoded to compressed bytes that EXT_meshopt_compression can reach:
 // the attribute codec spends at least 2 header bits on every 16 bytes of a byte channel
@@ -480,18 +416,11 @@ struct GltfDocument::Impl {
                  std::to_string(decodedBytes + viewLength) + " bytes, more than " + std::to_string(kMeshoptMaxRatio) +
                  " times the " + std::to_string(bufferBytes) + " buffer bytes read (views sharing compressed bytes?)");
 
-        std::vector<uint8_t> out(static_cast<size_t>(viewLength));
-        const unsigned char* src = buf.data() + offset;
-        const int rc = mode == "ATTRIBUTES" ? meshopt_decodeVertexBuffer(out.data(), count, stride, src, length)
-                     : mode == "TRIANGLES"  ? meshopt_decodeIndexBuffer(out.data(), count, stride, src, length)
-                                            : meshopt_decodeIndexSequence(out.data(), count, stride, src, length);
-        if (rc != 0)
+        std::vector<uint8_t> out;
+        if (const int rc = gltf_codecs::decodeMeshopt(mode, filter, count, stride, buf.data() + offset, length, out); rc != 0)
             fail(ew + ": the compressed " + mode + " data (" + std::to_string(length) + " bytes at byte offset " +
                  std::to_string(offset) + " of " + at("buffers", b) + ") does not decode (meshoptimizer error " +
                  std::to_string(rc) + "; truncated or corrupt)");
-        if (filter == "OCTAHEDRAL") meshopt_decodeFilterOct(out.data(), count, stride);
-        if (filter == "QUATERNION") meshopt_decodeFilterQuat(out.data(), count, stride);
-        if (filter == "EXPONENTIAL") meshopt_decodeFilterExp(out.data(), count, stride);
         decodedBytes += viewLength;
         return decodedViews.emplace(view, std::move(out)).first->second;
     }
@@ -798,6 +727,7 @@ struct GltfDocument::Impl {
         if (mode == 4 && n % 3 != 0)
             fail(where + ": " + std::to_string(n) + " vertices do not make whole triangles (truncated?)");
         if (mode != 4 && n > 0 && n < 3) fail(where + ": a strip or fan needs at least 3 vertices");
+        out.triangles.reserve(mode == 4 ? n / 3 : n);
         const auto& v = indices;
         if (mode == 4)
             for (size_t k = 0; k + 2 < n; k += 3) out.triangles.push_back({v[k], v[k + 1], v[k + 2]});
@@ -837,65 +767,20 @@ struct GltfDocument::Impl {
             indexCount = uintField(element("accessors", ix, where), "count", indexWhere);
         }
 
-        std::unique_ptr<draco::Mesh> mesh;
-        try {
-            draco::DecoderBuffer buffer;
-            buffer.Init(reinterpret_cast<const char*>(bytes.data), size_t(bytes.length));
-            draco::Decoder decoder;
-            draco::StatusOr<std::unique_ptr<draco::Mesh>> decoded = decoder.DecodeMeshFromBuffer(&buffer);
-            if (!decoded.ok())
-                fail(dw + ": the Draco data of " + at("bufferViews", view) + " does not decode (" +
-                     decoded.status().error_msg_string() + ")");
-            mesh = std::move(decoded).value();
-        } catch (const std::bad_alloc&) {
-            fail(dw + ": the Draco data of " + at("bufferViews", view) + " does not decode (out of memory; corrupt?)");
-        } catch (const std::length_error&) {
-            fail(dw + ": the Draco data of " + at("bufferViews", view) + " does not decode (corrupt sizes)");
-        }
-        if (!mesh) fail(dw + ": the Draco data of " + at("bufferViews", view) + " holds no mesh");
-
-        const draco::PointAttribute* attribute = id <= UINT32_MAX ? mesh->GetAttributeByUniqueId(uint32_t(id)) : nullptr;
-        if (!attribute) fail(dw + ".attributes.POSITION: the Draco data has no attribute with unique id " + std::to_string(id));
-        if (attribute->num_components() != 3)
-            fail(dw + ".attributes.POSITION: the Draco attribute has " + std::to_string(attribute->num_components()) +
-                 " components (3 expected)");
-        const uint64_t points = mesh->num_points(), faces = mesh->num_faces();
+        // Bounded before the decoder's output is copied (spend() below checks the same).
+        const uint64_t left = 64 * (fileBytes + bufferBytes) + (uint64_t(1) << 24) - decodedElements;
+        Expected<gltf_codecs::DracoMesh> mesh = gltf_codecs::decodeDraco(bytes.data, size_t(bytes.length), id, left);
+        if (!mesh) fail(dw + ": the Draco data of " + at("bufferViews", view) + " " + mesh.error().message);
+        const uint64_t points = mesh->positions.size(), faces = mesh->triangles.size();
         if (points != posCount)
             fail(posWhere + ".count: " + std::to_string(posCount) + ", but the Draco data of " + where + " has " +
                  std::to_string(points) + " points");
         if (indexCount && *indexCount != 3 * faces)
             fail(indexWhere + ".count: " + std::to_string(*indexCount) + ", but the Draco data of " + where + " has " +
                  std::to_string(faces) + " triangles");
-        // Decoder output is trusted no further than needed: value indices and the value
-        // buffer are checked before anything is read through them.
-        const int64_t valueBytes = int64_t(attribute->size()) * attribute->byte_stride();
-        if (!attribute->buffer() || attribute->byte_offset() < 0 ||
-            attribute->byte_stride() < int64_t(3 * draco::DataTypeLength(attribute->data_type())) ||
-            attribute->byte_offset() + valueBytes > int64_t(attribute->buffer()->data_size()) ||
-            (!attribute->is_mapping_identity() && attribute->indices_map_size() < points))
-            fail(dw + ": the Draco data of " + at("bufferViews", view) + " is inconsistent (attribute storage)");
         spend(points + 3 * faces, where);
-        out.positions.resize(size_t(points));
-        for (uint32_t k = 0; k < points; ++k) {
-            const draco::AttributeValueIndex value = attribute->mapped_index(draco::PointIndex(k));
-            float p[3];
-            if (value.value() >= attribute->size() || !attribute->ConvertValue<float, 3>(value, p))
-                fail(dw + ": the Draco data of " + at("bufferViews", view) + " is inconsistent (point " +
-                     std::to_string(k) + ")");
-            if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
-                fail(dw + ": POSITION " + std::to_string(k) + " is not finite");
-            out.positions[k] = glm::dvec3(p[0], p[1], p[2]);
-        }
-        out.triangles.reserve(size_t(faces));
-        for (uint32_t f = 0; f < faces; ++f) {
-            const draco::Mesh::Face& face = mesh->face(draco::FaceIndex(f));
-            std::array<uint32_t, 3> t{face[0].value(), face[1].value(), face[2].value()};
-            for (uint32_t c : t)
-                if (c >= points)
-                    fail(dw + ": triangle " + std::to_string(f) + " of the Draco data names point " + std::to_string(c) +
-                         " of " + std::to_string(points));
-            out.triangles.push_back(t);
-        }
+        out.positions = std::move(mesh->positions);
+        out.triangles = std::move(mesh->triangles);
     }
 
 };

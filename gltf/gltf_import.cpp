@@ -121,6 +121,7 @@ public:
         Expected<std::vector<size_t>> roots = doc_.sceneRoots(opt_.scene);
         if (!roots) throw roots.error();
         findAnimated();
+        placements_.reserve(doc_.nodes().size());
         walk(*roots);
         if (placements_.empty()) fail("the scene has no node that draws a mesh with triangles: nothing to bake");
         readLights();
@@ -592,19 +593,38 @@ std::optional<size_t> nodeFromUuid(const std::string& uuid) {
 }
 
 std::string sceneIdentity(const json& gltf) {
-    json copy = gltf;
-    auto strip = [](json& obj) {
-        if (obj.is_object())
-            if (auto e = obj.find("extras"); e != obj.end() && e->is_object()) {
-                e->erase("shadowcull");
-                if (e->empty()) obj.erase(e);
-            }
+    // Member by member (keys are sorted), so that only an `extras` holding "shadowcull" is
+    // ever copied: a copy and a dump of the whole document cost a third of import's memory
+    // on large scenes. An `extras` left empty by the stripping counts as absent, so a scene
+    // and its export have the same identity.
+    Hasher h;
+    auto hashStripped = [&](const json& value) {
+        auto e = value.is_object() ? value.find("extras") : value.end();
+        if (e == value.end() || !e->is_object() || !e->contains("shadowcull")) {
+            h.str(value.dump());
+            return;
+        }
+        json copy = value;
+        copy["extras"].erase("shadowcull");
+        if (copy["extras"].empty()) copy.erase("extras");
+        h.str(copy.dump());
     };
-    strip(copy);
-    if (auto nodes = copy.find("nodes"); nodes != copy.end() && nodes->is_array())
-        for (json& n : *nodes) strip(n);
+    if (!gltf.is_object()) return "0000000000000000";
+    for (auto it = gltf.begin(); it != gltf.end(); ++it) {
+        if (it.key() == "extras" && it->is_object()) {
+            json extras = *it;
+            extras.erase("shadowcull");
+            if (extras.empty()) continue;
+            h.str(it.key()).str(extras.dump());
+        } else if (it.key() == "nodes" && it->is_array()) {
+            h.str(it.key()).pod(uint64_t(it->size()));
+            for (const json& node : *it) hashStripped(node);
+        } else {
+            h.str(it.key()).str(it->dump());
+        }
+    }
     char buf[20];
-    std::snprintf(buf, sizeof buf, "%016llx", (unsigned long long)Hasher().str(copy.dump()).value());
+    std::snprintf(buf, sizeof buf, "%016llx", (unsigned long long)h.value());
     return buf;
 }
 

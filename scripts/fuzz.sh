@@ -32,7 +32,7 @@ cmake --build build-fuzz -j "$(nproc)" --target "${targets[@]}" >>"$log" 2>&1 ||
 echo "fuzz: build-fuzz ready in $(($(date +%s) - start)) s (log: $log)"
 
 # Input size limits: a few times the largest seed, so that inputs can grow but runs stay fast.
-declare -A max_len=([space]=4096 [chunk]=8192 [model]=8192 [obj]=8192 [gltf]=8192 [terrain]=8192 [diff]=16384 [bake]=8192)
+declare -A max_len=([space]=4096 [chunk]=8192 [model]=8192 [obj]=8192 [gltf]=8192 [terrain]=8192 [diff]=16384 [bake]=8192 [import]=16384)
 # Dictionaries (fuzz/dict/): the element names, keys and keywords each reader compares against.
 declare -A dicts=([space]="xml space" [chunk]="xml chunk" [model]="xml model obj gltf split" [obj]="obj split"
                   [gltf]="gltf split" [terrain]="xml png split" [diff]="results split"
@@ -54,7 +54,7 @@ signature() {
   local out kind frame
   out=$(timeout 60 "build-fuzz/bin/fuzz_$1" -timeout=10 -rss_limit_mb=4096 "$2" 2>&1) && return 0
   kind=$(grep -o -m1 -E 'runtime error|LeakSanitizer|AddressSanitizer: [a-z-]+|libFuzzer: [a-z-]+|loader broke its promise' <<<"$out" || true)
-  frame=$(grep -E '^ +#[0-9]+ ' <<<"$out" | grep -o -m1 -E '/(core|cli|raycast|geometry|gpu)/[^ :]+:[0-9]+' | sed 's|^/||' || true)
+  frame=$(grep -E '^ +#[0-9]+ ' <<<"$out" | grep -o -m1 -E '/(core|cli|raycast|geometry|gpu|gltf)/[^ :]+:[0-9]+' | sed 's|^/||' || true)
   echo "${kind:-crash} @ ${frame:-?}"
 }
 
@@ -123,6 +123,11 @@ for r in "${readers[@]}"; do
     "$(wc -l <"$scratch/$r.known")" "$(wc -l <"$scratch/$r.unrepeated")"
 done
 for r in "${readers[@]}"; do
+  # A target that never ran (no log, no executions) fails: silence is not a pass.
+  if ! grep -q '^#[0-9]' "build-fuzz/logs/$r.log" 2>/dev/null; then
+    failed=1
+    echo "DID NOT RUN: fuzz_$r (see build-fuzz/logs/$r.log and the messages above)"
+  fi
   if [ -s "$scratch/$r.regressed" ]; then
     failed=1
     echo "REGRESSED: saved reproducers of $r crash again:"

@@ -1070,7 +1070,7 @@ TEST(MeshGltf, DracoCompressedPrimitive) {
     {
         GltfBuilder b = dracoFile(g);
         b.doc["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["attributes"]["POSITION"] = 7;
-        expectError(loadString(b.gltf()), ext + ".attributes.POSITION: the Draco data has no attribute with unique id 7");
+        expectError(loadString(b.gltf()), ext + ": the Draco data of bufferViews[0] has no attribute with unique id 7 (attributes.POSITION)");
     }
     {
         GltfBuilder b = dracoFile(g);
