@@ -221,6 +221,108 @@ bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3
     return reached;
 }
 
+FrustumFilter::FrustumFilter(const Triangle& t, const LightGeometry& light, double dilation) : caster_(t), light_(light) {
+    shared_ = !(dilation > 0);
+    // The caster's normal, away from the light; an uncertain facing (edge-on) disables
+    // the filter.
+    const glm::dvec3 e1 = t[1] - t[0], e2 = t[2] - t[0];
+    glm::dvec3 n = glm::cross(e1, e2);
+    const glm::dvec3 toward = light.directional ? light.direction : t[0] - light.position;
+    const double facing = glm::dot(n, toward);
+    const double facingBound = 1e-12 * (glm::length(e1) * glm::length(e2) + glm::length(n)) * glm::length(toward) + 1e-300;
+    if (!(std::abs(facing) > facingBound)) return;
+    if (facing < 0) n = -n;
+    nearK_ = light.directional ? std::abs(facing) : 0.0;  // n . d, for the bias
+    // Near plane: n . (x - a) > 0 is strictly behind the caster (the bias only shrinks it;
+    // a dilation r moves it towards the light by r |n|).
+    planes_[3] = Plane{n, t[0], dilation > 0 ? dilation * glm::length(n) * (1 + 1e-9) : 0.0,
+                       glm::length(e1) * glm::length(e2) + glm::length(n), {0, 1}};
+    for (int e = 0; e < 3; ++e) {
+        const glm::dvec3 tp = t[size_t(e)], tq = t[size_t((e + 1) % 3)], tr = t[size_t((e + 2) % 3)];
+        const glm::dvec3 a = light.directional ? tq - tp : tp - light.position;
+        const glm::dvec3 b = light.directional ? light.direction : tq - light.position;
+        glm::dvec3 sn = glm::cross(a, b);
+        const glm::dvec3 o = light.directional ? tp : light.position;
+        const double scale = glm::length(a) * glm::length(b) + glm::length(sn);
+        const glm::dvec3 dr = tr - o;
+        const double inside = glm::dot(sn, dr);
+        if (!(std::abs(inside) > 1e-12 * scale * (std::abs(dr.x) + std::abs(dr.y) + std::abs(dr.z)) + 1e-300)) return;
+        if (inside < 0) sn = -sn;
+        planes_[e] = Plane{sn, o, dilation > 0 ? dilation * glm::length(sn) * (1 + 1e-9) : 0.0, scale, {e, (e + 1) % 3}};
+    }
+    // The near plane holds all three caster vertices; sides hold the two of their edge.
+    valid_ = true;
+}
+
+// Every vertex of r strictly outside `p` (beyond rounding), or, without dilation, equal
+// to a caster vertex that lies on `p` exactly.
+// `shift` is subtracted from the plane's function (the near plane with a bias).
+bool FrustumFilter::outside(const Plane& p, const Triangle& r, double shift) const {
+    for (const glm::dvec3& x : r) {
+        const glm::dvec3 d = x - p.o;
+        const double v = glm::dot(p.n, d) + p.k - shift;
+        const double bound =
+            1e-12 * (p.scale * (std::abs(d.x) + std::abs(d.y) + std::abs(d.z)) + std::abs(p.k) + std::abs(shift)) + 1e-300;
+        if (v < -bound) continue;
+        bool on = false;
+        if (shared_) {
+            if (&p == &planes_[3]) on = x == caster_[0] || x == caster_[1] || x == caster_[2];
+            else on = x == caster_[size_t(p.onPlane[0])] || x == caster_[size_t(p.onPlane[1])];
+        }
+        if (!on) return false;
+    }
+    return true;
+}
+
+// Along the ray through caster point p the receiver's plane lies at (directional)
+// s(p) = n.(r0 - p) / n.d beyond p, or (point light, ray L + l (p - L)) at
+// l(p) - 1 = n.(r0 - p) / n.(p - L). Numerators and denominators are affine in p, so when
+// at each caster vertex they have certain and opposite signs (and, for a point light, the
+// denominators one sign), the plane is in front of the caster over the whole column, and
+// so is every receiver point in it: none is behind the caster. A caster vertex shared
+// with the receiver has numerator exactly 0 and is let through: the plane is then in front
+// or in the caster's plane, never behind. Without dilation only.
+bool FrustumFilter::receiverPlaneInFront(const Triangle& r, double beta) const {
+    const glm::dvec3 e1 = r[1] - r[0], e2 = r[2] - r[0];
+    const glm::dvec3 n = glm::cross(e1, e2);
+    const double nScale = glm::length(e1) * glm::length(e2) + glm::length(n);
+    int denSign = 0;
+    for (const glm::dvec3& p : caster_) {
+        const glm::dvec3 toward = light_.directional ? light_.direction : p - light_.position;
+        const double den = glm::dot(n, toward);
+        const double denBound = 1e-12 * nScale * (std::abs(toward.x) + std::abs(toward.y) + std::abs(toward.z)) + 1e-300;
+        if (!(std::abs(den) > denBound)) return false;
+        const int ds = den > 0 ? 1 : -1;
+        if (denSign != 0 && ds != denSign) return false;
+        denSign = ds;
+        // A caster vertex that is a receiver vertex lies on the receiver's plane: its
+        // numerator is exactly 0 (the plane touches the column there, in the caster's
+        // own plane, which is not behind it).
+        if (beta == 0 && (p == r[0] || p == r[1] || p == r[2])) continue;
+        // Directional: s - beta = (num - beta den) / den must be < 0 (beta is 0 for points).
+        const glm::dvec3 back = r[0] - p;
+        const double num = glm::dot(n, back) - beta * den;
+        const double numBound =
+            1e-12 * nScale * (std::abs(back.x) + std::abs(back.y) + std::abs(back.z) + beta * glm::length(toward)) + 1e-300;
+        if (!(std::abs(num) > numBound) || (num > 0) == (den > 0)) return false;
+    }
+    return true;
+}
+
+bool FrustumFilter::certainlyMisses(const Triangle& r, double beta) const {
+    if (!valid_) return false;
+    if (!light_.directional) beta = 0;
+    if (shared_ && receiverPlaneInFront(r, beta)) return true;
+    // The near plane moved back by the bias: n . (x - a) - beta n.d > 0 (n.d > 0).
+    if (outside(planes_[3], r, beta * nearK_)) return true;
+    // Convexity: a triangle with every vertex outside a closed side (or outside-or-on the
+    // open near plane, or on a side only where the caster itself is) has no point in the
+    // frustum but possibly the caster's own boundary, which is not behind the caster.
+    for (int e = 0; e < 3; ++e)
+        if (outside(planes_[e], r, 0.0)) return true;
+    return false;
+}
+
 int exactFacing(const Triangle& r, bool mirrored, const LightGeometry& light) {
     // Filter: the sign in double when it is far beyond rounding, else exactly.
     {

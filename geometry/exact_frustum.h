@@ -57,6 +57,44 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
+// A double-only filter in front of ExactFrustum, cheap to build for every caster triangle
+// (no CGAL): certainlyMisses(r) is true only when the receiver cannot reach the frustum
+// for any bias >= 0, with every rounding covered by a wide error bound. It rejects a
+// receiver that lies strictly outside one side or wholly in front of the caster's plane,
+// or whose plane lies in front of the caster along every ray of the caster's column (a
+// large terrain triangle above a buried caster: its vertices lie on both sides of every
+// plane of the frustum, but where it crosses the column it is nearer the light),
+// where "strictly" also holds, exactly, for a receiver vertex that *is* a caster vertex on
+// that plane (bitwise equal): a neighbour of the same mesh that shares an edge or a
+// vertex with the caster meets the frustum's closure only in that edge or vertex, which
+// lies in the caster's plane and so is never strictly behind it. Without dilation only;
+// with a filter radius the shared-vertex rule is off (the frustum then grows past the
+// caster's edges). When the caster is (nearly) edge-on or a sign is uncertain the filter
+// says nothing and the exact test decides.
+class FrustumFilter {
+public:
+    FrustumFilter(const Triangle& caster, const LightGeometry& light, double dilation);
+    // `beta`: the receiver's bias (metres, >= 0; a lower bound, as for reaches()). Used
+    // for directional lights; point lights are filtered as if it were 0 (weaker, still
+    // sound).
+    bool certainlyMisses(const Triangle& receiver, double beta) const;
+
+private:
+    struct Plane {
+        glm::dvec3 n{0.0}, o{0.0};  // inside: n . (x - o) + k > 0 (sides closed, near open)
+        double k = 0.0;
+        double scale = 0.0;         // size of the normal's terms, for the error bound
+        int onPlane[2] = {-1, -1};  // caster vertices that lie on this plane exactly
+    };
+    bool outside(const Plane& p, const Triangle& r, double shift) const;
+    bool receiverPlaneInFront(const Triangle& r, double beta) const;
+    Triangle caster_;
+    LightGeometry light_;
+    bool valid_ = false, shared_ = false;
+    double nearK_ = 0.0;  // directional: n . d of the caster's normal (away from the light)
+    Plane planes_[4];  // three sides, then the near plane (the caster's own)
+};
+
 // Exact facing: +1 when the light meets the receiver's front (counter-clockwise side, or
 // the other side when `mirrored`), -1 when it meets the back, 0 when the light is in the
 // receiver's plane (grazing: a one-sided receiver then receives nothing).

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <optional>
 
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
@@ -97,6 +98,144 @@ private:
     int nx_ = 1, nz_ = 1;
     std::vector<std::vector<uint32_t>> cells_;
     std::vector<uint32_t> large_;  // receivers touching more than kMaxCellsPerReceiver cells
+};
+
+// Receivers of one directional light, in a bounding-volume hierarchy over their
+// projections onto the plane across the light (coordinates u, v; depth w along it). The
+// frustum {p + s d : p in t, s > 0} of a caster triangle t projects onto t's own
+// projection (dilated by the filter radius), and every point of it lies deeper than t's
+// shallowest vertex; so a receiver whose projected box misses t's, or that lies wholly
+// shallower than t, cannot meet it. A query then costs what lies in the caster's shadow
+// column: for a slanted sun the world box of a slender extruded triangle spans the whole
+// window, and the world grid returned every receiver of a dense mesh for every one of its
+// triangles; and a hierarchy, unlike a uniform grid, adapts to a dense mesh in a sparse
+// world. Broad phase only: boxes are grown by the rounding margin; the filters and the
+// exact test decide the rest.
+class LightSpaceGrid {
+public:
+    struct Box2 {
+        glm::dvec2 min{1e300}, max{-1e300};
+        void extend(const glm::dvec2& p) { min = glm::min(min, p); max = glm::max(max, p); }
+        void extend(const Box2& b) { min = glm::min(min, b.min); max = glm::max(max, b.max); }
+        bool overlaps(const Box2& o) const {
+            return !(max.x < o.min.x || min.x > o.max.x || max.y < o.min.y || min.y > o.max.y);
+        }
+    };
+
+    LightSpaceGrid(const std::vector<Receiver>& receivers, const glm::dvec3& direction, double margin) : margin_(margin) {
+        w_ = glm::normalize(direction);
+        // Any unit vector across the light; the axis least aligned with it keeps u well defined.
+        const glm::dvec3 a = std::abs(w_.x) < 0.57 ? glm::dvec3(1, 0, 0) : std::abs(w_.y) < 0.57 ? glm::dvec3(0, 1, 0) : glm::dvec3(0, 0, 1);
+        u_ = glm::normalize(glm::cross(w_, a));
+        v_ = glm::cross(w_, u_);
+        boxes_.resize(receivers.size());
+        deepest_.resize(receivers.size());
+        order_.resize(receivers.size());
+        for (uint32_t k = 0; k < receivers.size(); ++k) {
+            boxes_[k] = project(receivers[k].tri, 0.0);
+            double deepest = -1e300;
+            for (const glm::dvec3& p : receivers[k].tri) deepest = std::max(deepest, glm::dot(p, w_));
+            deepest_[k] = deepest + margin_;
+            order_[k] = k;
+        }
+        if (!receivers.empty()) build(0, uint32_t(receivers.size()));
+    }
+
+    // The projection of `t`, grown by the margin and `grow` (metres, the filter radius).
+    Box2 project(const Triangle& t, double grow) const {
+        Box2 b;
+        for (const glm::dvec3& p : t) b.extend({glm::dot(p, u_), glm::dot(p, v_)});
+        b.min -= glm::dvec2(margin_ + grow);
+        b.max += glm::dvec2(margin_ + grow);
+        return b;
+    }
+    // The least depth of `t`, less the margin. With a filter radius r the exact frustum's
+    // near plane moves r towards the light too: the caller subtracts r.
+    double shallowest(const Triangle& t) const {
+        return std::min({glm::dot(t[0], w_), glm::dot(t[1], w_), glm::dot(t[2], w_)}) - margin_;
+    }
+
+    // Calls f(index) once for every receiver whose projected box overlaps `box` and that
+    // reaches deeper than `depth`, until f returns true.
+    template <class F>
+    void forEachOverlapping(const Box2& box, double depth, F f) const {
+        if (nodes_.empty()) return;
+        uint32_t stack[64];
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const Node& n = nodes_[stack[--top]];
+            if (n.deepest < depth || !n.box.overlaps(box)) continue;
+            if (n.count > 0) {
+                for (uint32_t i = n.first; i < n.first + n.count; ++i) {
+                    const uint32_t k = order_[i];
+                    if (deepest_[k] >= depth && boxes_[k].overlaps(box) && f(k)) return;
+                }
+            } else {
+                stack[top++] = n.first;      // left child
+                stack[top++] = n.first + 1;  // right child
+            }
+        }
+    }
+
+private:
+    struct Node {
+        Box2 box;
+        double deepest = -1e300;
+        uint32_t first = 0;  // leaf: first index into order_; inner: index of the left child
+        uint32_t count = 0;  // leaf: receivers; inner: 0
+    };
+    static constexpr uint32_t kLeafSize = 8;
+
+    // Median split on the longer axis of the centres; children are stored side by side.
+    // Depth is at most log2(n / kLeafSize) + 1, far below the query stack's 64.
+    void build(uint32_t first, uint32_t count) {
+        nodes_.reserve(2 * (count / kLeafSize + 1));
+        nodes_.push_back({});
+        struct Job {
+            uint32_t node, first, count;
+        };
+        std::vector<Job> jobs{{0, first, count}};
+        while (!jobs.empty()) {
+            const Job j = jobs.back();
+            jobs.pop_back();
+            Box2 box, centres;
+            double deepest = -1e300;
+            for (uint32_t i = j.first; i < j.first + j.count; ++i) {
+                const uint32_t k = order_[i];
+                box.extend(boxes_[k]);
+                centres.extend(0.5 * (boxes_[k].min + boxes_[k].max));
+                deepest = std::max(deepest, deepest_[k]);
+            }
+            nodes_[j.node].box = box;
+            nodes_[j.node].deepest = deepest;
+            if (j.count <= kLeafSize) {
+                nodes_[j.node].first = j.first;
+                nodes_[j.node].count = j.count;
+                continue;
+            }
+            const int axis = centres.max.x - centres.min.x >= centres.max.y - centres.min.y ? 0 : 1;
+            const uint32_t half = j.count / 2;
+            std::nth_element(order_.begin() + j.first, order_.begin() + j.first + half, order_.begin() + j.first + j.count,
+                             [&](uint32_t p, uint32_t q) {
+                                 return boxes_[p].min[axis] + boxes_[p].max[axis] < boxes_[q].min[axis] + boxes_[q].max[axis];
+                             });
+            const uint32_t left = uint32_t(nodes_.size());
+            nodes_.push_back({});
+            nodes_.push_back({});
+            nodes_[j.node].first = left;
+            nodes_[j.node].count = 0;
+            jobs.push_back({left, j.first, half});
+            jobs.push_back({left + 1, j.first + half, j.count - half});
+        }
+    }
+
+    double margin_;
+    glm::dvec3 u_{1, 0, 0}, v_{0, 0, 1}, w_{0, -1, 0};
+    std::vector<Box2> boxes_;
+    std::vector<double> deepest_;  // largest depth of each receiver, plus the margin
+    std::vector<uint32_t> order_;  // receivers, leaf by leaf
+    std::vector<Node> nodes_;
 };
 
 Aabb triangleBox(const Triangle& t) {
@@ -220,6 +359,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
         int group;
     };
     const bool cross = options_.crossCheckWitnesses;
+    const bool exhaustive = options_.exhaustive;
     auto wanted = [&](const Decision& d) { return d.verdict == Verdict::Undecided || (cross && d.verdict == Verdict::Kept); };
     std::vector<Task> tasks;
     std::vector<bool> lightNeeded(size_t(cv.lightCount), false);
@@ -283,7 +423,13 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 receivers.push_back(r);
             }
         }
-        ReceiverGrid grid(limits, std::max(window.chunkSize / 16.0, 1.0), receivers);
+        // The world grid serves point and spot lights; directional ones query their own
+        // light-space hierarchy (built below).
+        bool anyLocal = false;
+        for (int l = 0; l < cv.lightCount; ++l)
+            anyLocal |= lightNeeded[size_t(l)] && window.lsLights[size_t(l)].type != LightType::Directional;
+        std::optional<ReceiverGrid> grid;
+        if (anyLocal) grid.emplace(limits, std::max(window.chunkSize / 16.0, 1.0), receivers);
         // Per thread: which receivers a query has already returned (reused across tasks).
         struct Stamps {
             std::vector<uint32_t> stamp;
@@ -293,11 +439,13 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
 
         std::vector<LightGeometry> lightGeom(size_t(cv.lightCount));
         std::vector<std::unique_ptr<ReceiverRules>> rules(size_t(cv.lightCount));
+        std::vector<std::unique_ptr<LightSpaceGrid>> lightGrids(size_t(cv.lightCount));  // directional lights
         for (int l = 0; l < cv.lightCount; ++l) {
             const Light& L = window.lsLights[size_t(l)];
             lightGeom[size_t(l)] = LightGeometry{L.type == LightType::Directional, L.direction, L.position};
-            if (lightNeeded[size_t(l)])
-                rules[size_t(l)] = std::make_unique<ReceiverRules>(window, receivers, L, lightGeom[size_t(l)], margin);
+            if (!lightNeeded[size_t(l)]) continue;
+            rules[size_t(l)] = std::make_unique<ReceiverRules>(window, receivers, L, lightGeom[size_t(l)], margin);
+            if (L.type == LightType::Directional) lightGrids[size_t(l)] = std::make_unique<LightSpaceGrid>(receivers, L.direction, margin);
         }
 
         std::atomic<uint64_t> tests{0}, culled{0}, examined{0};
@@ -325,22 +473,36 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 const ReceiverRules& lb = *rules[size_t(l)];
                 bool candidate = false;
                 Aabb volume;
+                const LightSpaceGrid* lightGrid = lightGrids[size_t(l)].get();
                 for (const Triangle& t : casters) {
-                    const ExactFrustum frustum(t, lightGeom[size_t(l)], L.filterRadius);
-                    const Aabb fb = frustumBox(t, L, limits, margin);
-                    volume.extend(fb);
-                    grid.forEachOverlapping(fb, st.stamp, ++st.mark, [&](uint32_t k) {
+                    // Built on the first receiver that passes the broad phase and the rules:
+                    // most caster triangles of a dense mesh never need one.
+                    std::optional<ExactFrustum> frustum;
+                    const FrustumFilter filter(t, lightGeom[size_t(l)], L.filterRadius);
+                    auto test = [&](uint32_t k) {
                         const double beta = lb.beta(k);
                         if (beta < 0) return false;
-                        ++localTests;
                         const Receiver& r = receivers[k];
+                        if (!exhaustive && filter.certainlyMisses(r.tri, beta)) return false;
+                        ++localTests;
+                        if (!frustum) frustum.emplace(t, lightGeom[size_t(l)], L.filterRadius);
                         std::array<glm::dvec3, 2> part;
-                        if (!frustum.reaches(r.tri, beta, &part)) return false;
+                        if (!frustum->reaches(r.tri, beta, &part)) return false;
                         // The terrain rule on the part of the receiver the shadow reaches: a
                         // rock half in the ground receives only with its part above ground.
                         candidate = !(window.hasTerrain && !r.terrain && underTerrain(window, part, margin));
                         return candidate;
-                    });
+                    };
+                    const Aabb fb = frustumBox(t, L, limits, margin);
+                    volume.extend(fb);
+                    if (exhaustive) {
+                        for (uint32_t k = 0; k < receivers.size(); ++k)
+                            if (test(k)) break;
+                    } else if (lightGrid)
+                        lightGrid->forEachOverlapping(lightGrid->project(t, L.filterRadius),
+                                                      lightGrid->shallowest(t) - L.filterRadius, test);
+                    else
+                        grid->forEachOverlapping(fb, st.stamp, ++st.mark, test);
                     if (candidate) break;
                 }
                 if (candidate) continue;

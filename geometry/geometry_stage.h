@@ -15,6 +15,9 @@ struct GeometryOptions {
     // Test mode: also examine bits the raycast stage kept, and fail with an internal error
     // if a bit with a witness would be proved 0 (the two stages must never disagree).
     bool crossCheckWitnesses = false;
+    // Test mode: the reference the fast path must equal. Every receiver of the window goes
+    // to the exact test (no light-space hierarchy, no world grid, no double filters).
+    bool exhaustive = false;
 };
 
 class GeometryStage : public Stage {

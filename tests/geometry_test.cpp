@@ -3,6 +3,9 @@
 // same scenes moved 100 km and turned.
 
 #include <functional>
+#include <random>
+
+#include <glm/geometric.hpp>
 
 #include <gtest/gtest.h>
 
@@ -368,4 +371,153 @@ TEST(GeometryStage, NoProofWhenAnObjectOfTheWindowWasSkipped) {
     cli::BitCounts c = cli::countBits(r);
     EXPECT_EQ(c.culled, 0u);
     EXPECT_EQ(c.undecided, 2u);
+}
+
+// --- The fast path (issue 13): light-space hierarchy and double filters -------------------
+
+namespace {
+
+// A jagged open sheet: n x n quads of `cell` metres, heights alternating by `zig` metres
+// (a scanned surface), front faces up.
+MeshSpec jaggedSheet(int n, double cell, double zig) {
+    MeshSpec m;
+    const int g = m.addGroup(GroupSpec{});
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) m.addVertex({i * cell, ((i + j) % 2) * zig, j * cell});
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const int a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+            m.addTriangle(a, c, b, g);
+            m.addTriangle(b, c, d, g);
+        }
+    return m;
+}
+
+}  // namespace
+
+// The double filter may only reject what the exact test rejects: on random triangles, on
+// the neighbours of a jagged sheet (shared edges and vertices, the cases the filter
+// decides by vertex identity), on the caster itself and on coplanar copies, for
+// directional and point lights, with and without bias and dilation.
+TEST(FrustumFilter, NeverMissesWhatTheExactTestReaches) {
+    std::mt19937_64 rng(13);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    auto vec = [&](double s) { return glm::dvec3(u(rng), u(rng), u(rng)) * s; };
+    const MeshSpec sheet = jaggedSheet(6, 0.02, 0.03);
+    std::vector<Triangle> sheetTris;
+    for (const auto& t : sheet.triangles) sheetTris.push_back({sheet.positions[size_t(t[0])], sheet.positions[size_t(t[1])], sheet.positions[size_t(t[2])]});
+    size_t pairs = 0, filtered = 0, reached = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+        LightGeometry light;
+        light.directional = trial % 3 != 0;
+        light.direction = trial % 7 == 0 ? glm::dvec3(0, -1, 0) : glm::normalize(glm::dvec3(u(rng) * 0.6, -1.0, u(rng) * 0.6));
+        light.position = glm::dvec3(u(rng) * 0.2, 0.5 + 0.3 * std::abs(u(rng)), u(rng) * 0.2);
+        const double dilation = trial % 5 == 0 ? 0.01 : 0.0;
+        std::vector<std::pair<Triangle, std::vector<Triangle>>> cases;
+        // A sheet triangle against every other sheet triangle.
+        const Triangle& t = sheetTris[size_t(trial) % sheetTris.size()];
+        cases.push_back({t, sheetTris});
+        // A random caster against random receivers around and behind it, and against
+        // itself and a coplanar copy sharing an edge.
+        const glm::dvec3 c0 = vec(0.5) + glm::dvec3(0, 0.2, 0);
+        const Triangle rt = {c0, c0 + vec(0.1), c0 + vec(0.1)};
+        std::vector<Triangle> around = {rt, {rt[0], rt[1], rt[0] + (rt[1] - rt[2])}};
+        for (int k = 0; k < 20; ++k) {
+            const glm::dvec3 p = c0 + vec(0.3) + (light.directional ? light.direction : c0 - light.position) * std::abs(u(rng)) * 0.3;
+            around.push_back({p, p + vec(0.1), p + vec(0.1)});
+        }
+        cases.push_back({rt, around});
+        for (const auto& [caster, receivers] : cases) {
+            if (hasRepeatedVertex(caster[0], caster[1], caster[2])) continue;
+            const ExactFrustum exact(caster, light, dilation);
+            const geometry::FrustumFilter filter(caster, light, dilation);
+            for (const Triangle& r : receivers) {
+                if (hasRepeatedVertex(r[0], r[1], r[2])) continue;
+                for (double beta : {0.0, 0.01, 0.05}) {
+                    ++pairs;
+                    const bool misses = filter.certainlyMisses(r, beta);
+                    const bool reaches = exact.reaches(r, beta);
+                    filtered += misses;
+                    reached += reaches;
+                    ASSERT_FALSE(misses && reaches) << "trial " << trial << " beta " << beta;
+                }
+            }
+        }
+    }
+    // The test means something only if both outcomes occur often.
+    EXPECT_GT(filtered, pairs / 3) << pairs << " pairs";
+    EXPECT_GT(reached, pairs / 50) << pairs << " pairs";
+}
+
+// The fast path gives the verdicts of the exhaustive reference, bit for bit: a jagged
+// sheet (every triangle a neighbour's receiver) lying on a floor, floating, and buried in
+// a terrain, under a slanted sun with and without bias, a filter radius, and a lamp.
+TEST(GeometryStage, FastPathEqualsTheExhaustiveReference) {
+    struct Scene {
+        const char* name;
+        std::function<void(SpaceBuilder&)> add;
+    };
+    const std::vector<Scene> scenes = {
+        {"sheet on a floor", [](SpaceBuilder& b) {
+             b.addMesh("floor", quadFacing(0, true, 20));
+             b.addModel("floor", Affine::translation({40, 0, 40}));
+             b.addModel("sheet", Affine::translation({50, 0, 50}));
+         }},
+        {"floating sheet", [](SpaceBuilder& b) { b.addModel("sheet", Affine::translation({50, 3, 50})); }},
+        {"sheet half in a terrain", [](SpaceBuilder& b) {
+             b.addFlatTerrain(0, 0, 0.015);
+             b.addModel("sheet", Affine::translation({50, 0, 50}));
+         }},
+    };
+    std::vector<LightSpec> lights = {LightSpec::directional("sun", {0.3, -1, 0.2}), LightSpec::directional("steep", {0.9, -1, 0.1}),
+                                     LightSpec::point("lamp", {50.1, 1.0, 50.1}, 5.0)};
+    lights[0].bias = 0.02;
+    lights[1].filterRadius = 0.01;
+    size_t allProved = 0, allUndecided = 0;
+    for (const Scene& sc : scenes) {
+        SCOPED_TRACE(sc.name);
+        SpaceBuilder b;
+        for (const LightSpec& L : lights) b.addLight(L);
+        b.addMesh("sheet", jaggedSheet(10, 0.05, 0.04));
+        sc.add(b);
+        const fs::path dir = freshTestDir("-" + std::to_string(&sc - scenes.data()));
+        b.write((dir / "space").string());
+        std::vector<cli::BakeResult> results;
+        for (bool exhaustive : {false, true}) {
+            cli::BakeOptions opt;
+            opt.spaceDir = (dir / "space").string();
+            opt.write = false;
+            opt.useRaycast = false;  // every bit goes to the geometry stage
+            opt.useGpu = false;
+            opt.geometry.exhaustive = exhaustive;
+            Expected<cli::BakeResult> r = cli::runBake(opt);
+            ASSERT_TRUE(r) << r.error().what();
+            results.push_back(std::move(*r));
+        }
+        size_t bits = 0, proved = 0, undecided = 0;
+        ASSERT_EQ(results[0].chunks.size(), results[1].chunks.size());
+        for (size_t c = 0; c < results[0].chunks.size(); ++c) {
+            const auto& fast = results[0].chunks[c];
+            const auto& ref = results[1].chunks[c];
+            ASSERT_EQ(fast.objects.size(), ref.objects.size());
+            for (size_t o = 0; o < fast.objects.size(); ++o)
+                for (int g = 0; g < fast.objects[o].groupCount; ++g)
+                    for (int l = 0; l < fast.lightCount; ++l) {
+                        ++bits;
+                        const Decision& a = fast.at(o, g, l);
+                        const Decision& e = ref.at(o, g, l);
+                        proved += e.verdict == Verdict::Culled && e.stage == std::string("geometry");
+                        undecided += e.verdict == Verdict::Undecided;
+                        EXPECT_EQ(a.verdict, e.verdict) << "chunk " << c << " object " << o << " light " << l + 1;
+                        EXPECT_EQ(std::string(a.stage), std::string(e.stage));
+                    }
+        }
+        EXPECT_GT(bits, 0u);
+        std::printf("%s: %zu bits, %zu proved 0 by the geometry stage, %zu left undecided\n", sc.name, bits, proved, undecided);
+        allProved += proved;
+        allUndecided += undecided;
+    }
+    // Both outcomes occur: the comparison covers proofs and bits left to the next stage.
+    EXPECT_GT(allProved, 0u);
+    EXPECT_GT(allUndecided, 0u);
 }
