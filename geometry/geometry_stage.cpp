@@ -100,121 +100,48 @@ private:
     std::vector<uint32_t> large_;  // receivers touching more than kMaxCellsPerReceiver cells
 };
 
-// Receivers of one directional light, in a bounding-volume hierarchy over their
-// projections onto the plane across the light (coordinates u, v; depth w along it). The
-// frustum {p + s d : p in t, s > 0} of a caster triangle t projects onto t's own
-// projection (dilated by the filter radius), and every point of it lies deeper than t's
-// shallowest vertex; so a receiver whose projected box misses t's, or that lies wholly
-// shallower than t, cannot meet it. A query then costs what lies in the caster's shadow
-// column: for a slanted sun the world box of a slender extruded triangle spans the whole
-// window, and the world grid returned every receiver of a dense mesh for every one of its
-// triangles; and a hierarchy, unlike a uniform grid, adapts to a dense mesh in a sparse
-// world. Broad phase only: boxes are grown by the rounding margin; the filters and the
-// exact test decide the rest.
-class LightSpaceGrid {
+// A bounding-volume hierarchy over receiver boxes (2D or 3D, `Box` has min/max, extend,
+// overlaps) that also knows each receiver's farthest depth: a query visits the receivers
+// whose box overlaps the query box and that reach at least a given depth, pruning whole
+// subtrees by both. Median splits on the longest axis of the centres; leaves of 8.
+template <class Box>
+class BoxHierarchy {
 public:
-    struct Box2 {
-        glm::dvec2 min{1e300}, max{-1e300};
-        void extend(const glm::dvec2& p) { min = glm::min(min, p); max = glm::max(max, p); }
-        void extend(const Box2& b) { min = glm::min(min, b.min); max = glm::max(max, b.max); }
-        bool overlaps(const Box2& o) const {
-            return !(max.x < o.min.x || min.x > o.max.x || max.y < o.min.y || min.y > o.max.y);
-        }
-    };
-
-    LightSpaceGrid(const std::vector<Receiver>& receivers, const glm::dvec3& direction, double margin) : margin_(margin) {
-        w_ = glm::normalize(direction);
-        // Any unit vector across the light; the axis least aligned with it keeps u well defined.
-        const glm::dvec3 a = std::abs(w_.x) < 0.57 ? glm::dvec3(1, 0, 0) : std::abs(w_.y) < 0.57 ? glm::dvec3(0, 1, 0) : glm::dvec3(0, 0, 1);
-        u_ = glm::normalize(glm::cross(w_, a));
-        v_ = glm::cross(w_, u_);
-        boxes_.resize(receivers.size());
-        deepest_.resize(receivers.size());
-        order_.resize(receivers.size());
-        for (uint32_t k = 0; k < receivers.size(); ++k) {
-            boxes_[k] = project(receivers[k].tri, 0.0);
-            double deepest = -1e300;
-            for (const glm::dvec3& p : receivers[k].tri) deepest = std::max(deepest, glm::dot(p, w_));
-            deepest_[k] = deepest + margin_;
-            order_[k] = k;
-        }
-        if (!receivers.empty()) build(0, uint32_t(receivers.size()));
-    }
-
-    // The projection of `t`, grown by the margin and `grow` (metres, the filter radius).
-    Box2 project(const Triangle& t, double grow) const {
-        Box2 b;
-        for (const glm::dvec3& p : t) b.extend({glm::dot(p, u_), glm::dot(p, v_)});
-        b.min -= glm::dvec2(margin_ + grow);
-        b.max += glm::dvec2(margin_ + grow);
-        return b;
-    }
-    // The least depth of `t`, less the margin. With a filter radius r the exact frustum's
-    // near plane moves r towards the light too: the caller subtracts r.
-    double shallowest(const Triangle& t) const {
-        return std::min({glm::dot(t[0], w_), glm::dot(t[1], w_), glm::dot(t[2], w_)}) - margin_;
-    }
-
-    // Calls f(index) once for every receiver whose projected box overlaps `box` and that
-    // reaches deeper than `depth`, until f returns true.
-    template <class F>
-    void forEachOverlapping(const Box2& box, double depth, F f) const {
-        if (nodes_.empty()) return;
-        uint32_t stack[64];
-        int top = 0;
-        stack[top++] = 0;
-        while (top > 0) {
-            const Node& n = nodes_[stack[--top]];
-            if (n.deepest < depth || !n.box.overlaps(box)) continue;
-            if (n.count > 0) {
-                for (uint32_t i = n.first; i < n.first + n.count; ++i) {
-                    const uint32_t k = order_[i];
-                    if (deepest_[k] >= depth && boxes_[k].overlaps(box) && f(k)) return;
-                }
-            } else {
-                stack[top++] = n.first;      // left child
-                stack[top++] = n.first + 1;  // right child
-            }
-        }
-    }
-
-private:
-    struct Node {
-        Box2 box;
-        double deepest = -1e300;
-        uint32_t first = 0;  // leaf: first index into order_; inner: index of the left child
-        uint32_t count = 0;  // leaf: receivers; inner: 0
-    };
-    static constexpr uint32_t kLeafSize = 8;
-
-    // Median split on the longer axis of the centres; children are stored side by side.
-    // Depth is at most log2(n / kLeafSize) + 1, far below the query stack's 64.
-    void build(uint32_t first, uint32_t count) {
-        nodes_.reserve(2 * (count / kLeafSize + 1));
+    void build(std::vector<Box> boxes, std::vector<double> far) {
+        boxes_ = std::move(boxes);
+        far_ = std::move(far);
+        order_.resize(boxes_.size());
+        for (uint32_t k = 0; k < order_.size(); ++k) order_[k] = k;
+        nodes_.clear();
+        if (order_.empty()) return;
+        nodes_.reserve(2 * (order_.size() / kLeafSize + 1));
         nodes_.push_back({});
         struct Job {
             uint32_t node, first, count;
         };
-        std::vector<Job> jobs{{0, first, count}};
+        std::vector<Job> jobs{{0, 0, uint32_t(order_.size())}};
         while (!jobs.empty()) {
             const Job j = jobs.back();
             jobs.pop_back();
-            Box2 box, centres;
-            double deepest = -1e300;
+            Box box, centres;
+            double far = -1e300;
             for (uint32_t i = j.first; i < j.first + j.count; ++i) {
                 const uint32_t k = order_[i];
                 box.extend(boxes_[k]);
                 centres.extend(0.5 * (boxes_[k].min + boxes_[k].max));
-                deepest = std::max(deepest, deepest_[k]);
+                far = std::max(far, far_[k]);
             }
             nodes_[j.node].box = box;
-            nodes_[j.node].deepest = deepest;
+            nodes_[j.node].far = far;
             if (j.count <= kLeafSize) {
                 nodes_[j.node].first = j.first;
                 nodes_[j.node].count = j.count;
                 continue;
             }
-            const int axis = centres.max.x - centres.min.x >= centres.max.y - centres.min.y ? 0 : 1;
+            int axis = 0;
+            const auto extent = centres.max - centres.min;
+            for (int a = 1; a < int(extent.length()); ++a)
+                if (extent[a] > extent[axis]) axis = a;
             const uint32_t half = j.count / 2;
             std::nth_element(order_.begin() + j.first, order_.begin() + j.first + half, order_.begin() + j.first + j.count,
                              [&](uint32_t p, uint32_t q) {
@@ -230,12 +157,174 @@ private:
         }
     }
 
-    double margin_;
-    glm::dvec3 u_{1, 0, 0}, v_{0, 0, 1}, w_{0, -1, 0};
-    std::vector<Box2> boxes_;
-    std::vector<double> deepest_;  // largest depth of each receiver, plus the margin
+    // Calls f(index) once for every receiver whose box overlaps `box` and whose far value
+    // is at least `near`, until f returns true. The tree is balanced (depth about
+    // log2(n / 8) + 1), far below the stack's 64.
+    template <class F>
+    void forEach(const Box& box, double near, F f) const {
+        if (nodes_.empty()) return;
+        uint32_t stack[64];
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const Node& n = nodes_[stack[--top]];
+            if (n.far < near || !n.box.overlaps(box)) continue;
+            if (n.count > 0) {
+                for (uint32_t i = n.first; i < n.first + n.count; ++i) {
+                    const uint32_t k = order_[i];
+                    if (far_[k] >= near && boxes_[k].overlaps(box) && f(k)) return;
+                }
+            } else {
+                stack[top++] = n.first;
+                stack[top++] = n.first + 1;
+            }
+        }
+    }
+
+private:
+    struct Node {
+        Box box;
+        double far = -1e300;
+        uint32_t first = 0;  // leaf: first index into order_; inner: index of the left child
+        uint32_t count = 0;  // leaf: receivers; inner: 0
+    };
+    static constexpr uint32_t kLeafSize = 8;
+    std::vector<Box> boxes_;
+    std::vector<double> far_;
     std::vector<uint32_t> order_;  // receivers, leaf by leaf
     std::vector<Node> nodes_;
+};
+
+template <class V>
+struct BoxN {
+    V min{1e300}, max{-1e300};
+    void extend(const V& p) { min = glm::min(min, p); max = glm::max(max, p); }
+    void extend(const BoxN& b) { min = glm::min(min, b.min); max = glm::max(max, b.max); }
+    bool overlaps(const BoxN& o) const {
+        for (int a = 0; a < int(V::length()); ++a)
+            if (max[a] < o.min[a] || min[a] > o.max[a]) return false;
+        return true;
+    }
+};
+using Box2 = BoxN<glm::dvec2>;
+using Box3 = BoxN<glm::dvec3>;
+
+// Receivers of one directional light, by their projection onto the plane across the
+// light (coordinates u, v; depth w along it). The frustum {p + s d : p in t, s > 0} of a
+// caster triangle t projects onto t's own projection (dilated by the filter radius), and
+// every point of it lies deeper than t's shallowest vertex; so a receiver whose projected
+// box misses t's, or that lies wholly shallower than t, cannot meet it. A query then costs
+// what lies in the caster's shadow column: for a slanted sun the world box of a slender
+// extruded triangle spans the whole window, and the world grid returned every receiver of
+// a dense mesh for every one of its triangles; a hierarchy, unlike a uniform grid, adapts
+// to a dense mesh in a sparse world. Broad phase only: boxes are grown by the rounding
+// margin; the filters and the exact test decide the rest.
+class LightSpaceGrid {
+public:
+    LightSpaceGrid(const std::vector<Receiver>& receivers, const glm::dvec3& direction, double margin) : margin_(margin) {
+        w_ = glm::normalize(direction);
+        // Any unit vector across the light; the axis least aligned with it keeps u well defined.
+        const glm::dvec3 a = std::abs(w_.x) < 0.57 ? glm::dvec3(1, 0, 0) : std::abs(w_.y) < 0.57 ? glm::dvec3(0, 1, 0) : glm::dvec3(0, 0, 1);
+        u_ = glm::normalize(glm::cross(w_, a));
+        v_ = glm::cross(w_, u_);
+        std::vector<Box2> boxes(receivers.size());
+        std::vector<double> deepest(receivers.size());
+        for (size_t k = 0; k < receivers.size(); ++k) {
+            boxes[k] = project(receivers[k].tri, 0.0);
+            double d = -1e300;
+            for (const glm::dvec3& p : receivers[k].tri) d = std::max(d, glm::dot(p, w_));
+            deepest[k] = d + margin_;
+        }
+        tree_.build(std::move(boxes), std::move(deepest));
+    }
+
+    // The projection of `t`, grown by the margin and `grow` (metres, the filter radius).
+    Box2 project(const Triangle& t, double grow) const {
+        Box2 b;
+        for (const glm::dvec3& p : t) b.extend(glm::dvec2(glm::dot(p, u_), glm::dot(p, v_)));
+        b.min -= glm::dvec2(margin_ + grow);
+        b.max += glm::dvec2(margin_ + grow);
+        return b;
+    }
+    // The least depth of `t`, less the margin. With a filter radius r the exact frustum's
+    // near plane moves r towards the light too: the caller subtracts r.
+    double shallowest(const Triangle& t) const {
+        return std::min({glm::dot(t[0], w_), glm::dot(t[1], w_), glm::dot(t[2], w_)}) - margin_;
+    }
+    template <class F>
+    void forEachOverlapping(const Box2& box, double depth, F f) const {
+        tree_.forEach(box, depth, f);
+    }
+
+private:
+    double margin_;
+    glm::dvec3 u_{1, 0, 0}, v_{0, 0, 1}, w_{0, -1, 0};
+    BoxHierarchy<Box2> tree_;
+};
+
+// Receivers of one point or spot light (without filter radius), by the directions in
+// which the light sees them. The frustum {L + l (p - L) : p in t, l > 1} of a caster
+// triangle t holds only directions in which L sees t, at distances beyond t's nearest
+// point; so a receiver seen in no such direction, or wholly nearer than t, cannot meet it.
+// Directions are bounded by caps (the spherical triangle of a triangle lies in the cap
+// around its mean direction through its farthest vertex, when that cap is under a
+// hemisphere) and caps by boxes in 3D around their axis (every point of a cap of angle a
+// lies within the chord 2 sin(a/2) of its axis point). A triangle the light sees over
+// half the sky or more, or too close to tell, gets the whole sphere.
+class DirectionGrid {
+public:
+    DirectionGrid(const std::vector<Receiver>& receivers, const glm::dvec3& light, double margin) : L_(light), margin_(margin) {
+        std::vector<Box3> boxes(receivers.size());
+        std::vector<double> farthest(receivers.size());
+        for (size_t k = 0; k < receivers.size(); ++k) {
+            boxes[k] = cap(receivers[k].tri);
+            double f = 0;
+            for (const glm::dvec3& p : receivers[k].tri) f = std::max(f, glm::length(p - L_));
+            farthest[k] = f * (1 + 1e-9) + margin_;
+        }
+        tree_.build(std::move(boxes), std::move(farthest));
+    }
+
+    Box3 cap(const Triangle& t) const {
+        Box3 all;
+        all.min = glm::dvec3(-2.0);
+        all.max = glm::dvec3(2.0);
+        glm::dvec3 u[3];
+        for (int i = 0; i < 3; ++i) {
+            const glm::dvec3 d = t[size_t(i)] - L_;
+            const double len = glm::length(d);
+            if (!(len > 1e-6 * (1 + margin_))) return all;
+            u[i] = d / len;
+        }
+        const glm::dvec3 sum = u[0] + u[1] + u[2];
+        const double sl = glm::length(sum);
+        if (!(sl > 1e-3)) return all;
+        const glm::dvec3 axis = sum / sl;
+        double minCos = 1.0;
+        for (const glm::dvec3& v : u) minCos = std::min(minCos, glm::dot(axis, v));
+        if (!(minCos > 0.05)) return all;  // the cap would reach a hemisphere: no bound
+        // chord = 2 sin(a/2) = sqrt(2 - 2 cos a), plus room for the rounding of all of it.
+        const double chord = std::sqrt(std::max(0.0, 2.0 - 2.0 * minCos)) + 1e-7;
+        Box3 b;
+        b.min = axis - glm::dvec3(chord);
+        b.max = axis + glm::dvec3(chord);
+        return b;
+    }
+    // A lower bound of the distance from the light of every point of t's frustum.
+    double nearest(const Triangle& t) const {
+        Aabb box;
+        for (const glm::dvec3& p : t) box.extend(p);
+        return distanceToBox(L_, box) * (1 - 1e-9) - margin_;
+    }
+    template <class F>
+    void forEachOverlapping(const Box3& box, double near, F f) const {
+        tree_.forEach(box, near, f);
+    }
+
+private:
+    glm::dvec3 L_;
+    double margin_;
+    BoxHierarchy<Box3> tree_;
 };
 
 Aabb triangleBox(const Triangle& t) {
@@ -423,11 +512,12 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 receivers.push_back(r);
             }
         }
-        // The world grid serves point and spot lights; directional ones query their own
-        // light-space hierarchy (built below).
+        // The world grid serves point and spot lights with a filter radius; the others query
+        // a hierarchy of their own (built below).
         bool anyLocal = false;
         for (int l = 0; l < cv.lightCount; ++l)
-            anyLocal |= lightNeeded[size_t(l)] && window.lsLights[size_t(l)].type != LightType::Directional;
+            anyLocal |= lightNeeded[size_t(l)] && window.lsLights[size_t(l)].type != LightType::Directional &&
+                        window.lsLights[size_t(l)].filterRadius > 0;
         std::optional<ReceiverGrid> grid;
         if (anyLocal) grid.emplace(limits, std::max(window.chunkSize / 16.0, 1.0), receivers);
         // Per thread: which receivers a query has already returned (reused across tasks).
@@ -440,12 +530,14 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
         std::vector<LightGeometry> lightGeom(size_t(cv.lightCount));
         std::vector<std::unique_ptr<ReceiverRules>> rules(size_t(cv.lightCount));
         std::vector<std::unique_ptr<LightSpaceGrid>> lightGrids(size_t(cv.lightCount));  // directional lights
+        std::vector<std::unique_ptr<DirectionGrid>> directionGrids(size_t(cv.lightCount));  // point, spot (no filter)
         for (int l = 0; l < cv.lightCount; ++l) {
             const Light& L = window.lsLights[size_t(l)];
             lightGeom[size_t(l)] = LightGeometry{L.type == LightType::Directional, L.direction, L.position};
             if (!lightNeeded[size_t(l)]) continue;
             rules[size_t(l)] = std::make_unique<ReceiverRules>(window, receivers, L, lightGeom[size_t(l)], margin);
             if (L.type == LightType::Directional) lightGrids[size_t(l)] = std::make_unique<LightSpaceGrid>(receivers, L.direction, margin);
+            else if (!(L.filterRadius > 0)) directionGrids[size_t(l)] = std::make_unique<DirectionGrid>(receivers, L.position, margin);
         }
 
         std::atomic<uint64_t> tests{0}, culled{0}, examined{0};
@@ -474,6 +566,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 bool candidate = false;
                 Aabb volume;
                 const LightSpaceGrid* lightGrid = lightGrids[size_t(l)].get();
+                const DirectionGrid* directionGrid = directionGrids[size_t(l)].get();
                 for (const Triangle& t : casters) {
                     // Built on the first receiver that passes the broad phase and the rules:
                     // most caster triangles of a dense mesh never need one.
@@ -498,6 +591,8 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     if (exhaustive) {
                         for (uint32_t k = 0; k < receivers.size(); ++k)
                             if (test(k)) break;
+                    } else if (directionGrid) {
+                        directionGrid->forEachOverlapping(directionGrid->cap(t), directionGrid->nearest(t), test);
                     } else if (lightGrid)
                         lightGrid->forEachOverlapping(lightGrid->project(t, L.filterRadius),
                                                       lightGrid->shallowest(t) - L.filterRadius, test);
