@@ -219,14 +219,27 @@ using Box3 = BoxN<glm::dvec3>;
 // a dense mesh for every one of its triangles; a hierarchy, unlike a uniform grid, adapts
 // to a dense mesh in a sparse world. Broad phase only: boxes are grown by the rounding
 // margin; the filters and the exact test decide the rest.
+// Coordinates across a directional light (u, v) and along it (w, depth).
+struct LightFrame {
+    glm::dvec3 u{1, 0, 0}, v{0, 0, 1}, w{0, -1, 0};
+    explicit LightFrame(const glm::dvec3& direction) {
+        w = glm::normalize(direction);
+        // Any unit vector across the light; the axis least aligned with it keeps u well defined.
+        const glm::dvec3 a = std::abs(w.x) < 0.57 ? glm::dvec3(1, 0, 0) : std::abs(w.y) < 0.57 ? glm::dvec3(0, 1, 0) : glm::dvec3(0, 0, 1);
+        u = glm::normalize(glm::cross(w, a));
+        v = glm::cross(w, u);
+    }
+    glm::dvec2 across(const glm::dvec3& p) const { return {glm::dot(p, u), glm::dot(p, v)}; }
+    double depth(const glm::dvec3& p) const { return glm::dot(p, w); }
+};
+
 class LightSpaceGrid {
 public:
     LightSpaceGrid(const std::vector<Receiver>& receivers, const glm::dvec3& direction, double margin) : margin_(margin) {
-        w_ = glm::normalize(direction);
-        // Any unit vector across the light; the axis least aligned with it keeps u well defined.
-        const glm::dvec3 a = std::abs(w_.x) < 0.57 ? glm::dvec3(1, 0, 0) : std::abs(w_.y) < 0.57 ? glm::dvec3(0, 1, 0) : glm::dvec3(0, 0, 1);
-        u_ = glm::normalize(glm::cross(w_, a));
-        v_ = glm::cross(w_, u_);
+        const LightFrame f(direction);
+        u_ = f.u;
+        v_ = f.v;
+        w_ = f.w;
         std::vector<Box2> boxes(receivers.size());
         std::vector<double> deepest(receivers.size());
         for (size_t k = 0; k < receivers.size(); ++k) {
@@ -486,16 +499,90 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     for (const Triangle& t : tasksCasters[ti]) queried.extend(frustumBox(t, window.lsLights[size_t(l)], limits, margin));
         }
 
+        // Directional lights: the shadow columns of every caster a task will query, in the
+        // light's frame (projected box, least depth). A receiver outside every column (and
+        // outside every local light's frustum boxes) is never returned by a query, so it is
+        // neither built nor put in a hierarchy: with a few undecided groups in a window of
+        // dense meshes, most of the window.
+        struct Column {
+            int light;
+            LightFrame frame;
+            Box2 box;
+            double depth = 1e300;
+        };
+        std::vector<Column> columns;
+        bool anyLocalLight = false;
+        for (int l = 0; l < cv.lightCount; ++l) {
+            if (!lightNeeded[size_t(l)]) continue;
+            const Light& L = window.lsLights[size_t(l)];
+            if (L.type != LightType::Directional) {
+                anyLocalLight = true;
+                continue;
+            }
+            Column c{l, LightFrame(L.direction), Box2{}, 1e300};
+            for (size_t ti = 0; ti < tasks.size(); ++ti)
+                if (wanted(cv.at(tasks[ti].object, tasks[ti].group, l)))
+                    for (const Triangle& t : tasksCasters[ti])
+                        for (const glm::dvec3& p : t) {
+                            c.box.extend(c.frame.across(p));
+                            c.depth = std::min(c.depth, c.frame.depth(p));
+                        }
+            c.box.min -= glm::dvec2(2 * margin + L.filterRadius);
+            c.box.max += glm::dvec2(2 * margin + L.filterRadius);
+            c.depth -= 2 * margin + L.filterRadius;
+            columns.push_back(c);
+        }
+        // Point and spot lights: the world boxes of their frusta.
+        Aabb localQueried;
+        if (anyLocalLight)
+            for (size_t ti = 0; ti < tasks.size(); ++ti)
+                for (int l = 0; l < cv.lightCount; ++l) {
+                    const Light& L = window.lsLights[size_t(l)];
+                    if (L.type != LightType::Directional && wanted(cv.at(tasks[ti].object, tasks[ti].group, l)))
+                        for (const Triangle& t : tasksCasters[ti]) localQueried.extend(frustumBox(t, L, limits, margin));
+                }
+        // Whether anything among `pts` (a box's corners, or a triangle) can be queried.
+        auto inColumns = [&](const glm::dvec3* pts, size_t n) {
+            if (exhaustive) return true;  // the reference keeps every receiver
+            if (anyLocalLight) {
+                Aabb b;
+                for (size_t i = 0; i < n; ++i) b.extend(pts[i]);
+                if (overlaps(b, localQueried)) return true;
+            }
+            for (const Column& c : columns) {
+                Box2 pb;
+                double deepest = -1e300;
+                for (size_t i = 0; i < n; ++i) {
+                    pb.extend(c.frame.across(pts[i]));
+                    deepest = std::max(deepest, c.frame.depth(pts[i]));
+                }
+                pb.min -= glm::dvec2(margin);
+                pb.max += glm::dvec2(margin);
+                if (deepest + margin >= c.depth && pb.overlaps(c.box)) return true;
+            }
+            return false;
+        };
+        auto corners = [](const Aabb& b) {
+            std::array<glm::dvec3, 8> c;
+            for (int k = 0; k < 8; ++k) c[size_t(k)] = {k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z};
+            return c;
+        };
+
         // Receivers: every triangle with three distinct vertices of everything loaded that
-        // lies in the queried box.
+        // lies in the queried box and in some shadow column.
+        std::vector<char> objectWanted(window.objects.size(), 0);
         std::vector<Receiver> receivers;
         size_t most = 0;
-        for (const WindowObject& o : window.objects)
-            if (overlaps(o.lsBounds, queried)) most += o.mesh->triangles.size();
+        for (size_t k = 0; k < window.objects.size(); ++k) {
+            const WindowObject& o = window.objects[k];
+            const auto c = corners(o.lsBounds);
+            objectWanted[k] = overlaps(o.lsBounds, queried) && inColumns(c.data(), c.size());
+            if (objectWanted[k]) most += o.mesh->triangles.size();
+        }
         receivers.reserve(most);
         for (uint32_t k = 0; k < window.objects.size(); ++k) {
             const WindowObject& o = window.objects[k];
-            if (!overlaps(o.lsBounds, queried)) continue;
+            if (!objectWanted[k]) continue;
             for (size_t t = 0; t < o.mesh->triangles.size(); ++t) {
                 const auto& i = o.mesh->triangles[t];
                 const glm::dvec3 &a = o.mesh->positions[i[0]], &b = o.mesh->positions[i[1]], &c = o.mesh->positions[i[2]];
@@ -503,7 +590,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 Receiver r;
                 r.tri = {o.lsTransform.apply(a), o.lsTransform.apply(b), o.lsTransform.apply(c)};
                 r.box = triangleBox(r.tri);
-                if (!overlaps(r.box, queried)) continue;
+                if (!overlaps(r.box, queried) || !inColumns(r.tri.data(), 3)) continue;
                 r.object = k;
                 r.group = o.mesh->triangleGroup[t];
                 r.twoSided = o.mesh->groups[r.group].twoSided();
