@@ -3,7 +3,7 @@
 // left undecided and peak memory, then the issue-6 ratios (L vs M per chunk, pipeline rays/s
 // vs a bare Embree occlusion loop over the same scene, analytic vs GPU). See bench/README.md.
 //
-//   bake_bench [--sizes S,M,L] [--work DIR] [--threads N] [--max-chunks N]
+//   bake_bench [--sizes S,M,L,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N]
 //              [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]
 //              [--cross-check] [--no-gpu] [--gpu-baseline S,M,L|none] [--gpu-res N]
 //              [--gen-only] [--json FILE]
@@ -60,6 +60,7 @@ constexpr double kTargetRaysRatio = 0.5;       // pipeline rays/s >= half of bar
 constexpr double kTargetLinearity = 0.10;      // L per chunk within 10% of M per chunk
 constexpr double kTargetMemoryGiB = 4.0;       // peak memory of L
 constexpr double kTargetGpuSpeedup = 10.0;     // analytic bake vs GPU method at 2048, world M
+constexpr double kTargetDenseRatio = 2.0;      // issue 13: whole bake of D within 2x of D2k
 constexpr uint64_t kDefaultBaselineCap = 4000000;  // rays per baseline loop unless --baseline-rays
 
 struct Options {
@@ -82,7 +83,7 @@ struct Options {
 [[noreturn]] void usage(const char* why) {
     std::fprintf(stderr,
                  "bake_bench: %s\n"
-                 "usage: bake_bench [--sizes S,M,L] [--work DIR] [--threads N] [--max-chunks N]\n"
+                 "usage: bake_bench [--sizes S,M,L,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N]\n"
                  "                  [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]\n"
                  "                  [--cross-check] [--no-gpu] [--gpu-baseline S,M,L|none] [--gpu-res N]\n"
                  "                  [--gen-only] [--json FILE]\n",
@@ -109,7 +110,7 @@ Options parseArgs(int argc, char** argv) {
             std::stringstream ss(value());
             for (std::string s; std::getline(ss, s, ',');) {
                 WorldSpec spec;
-                if (!worldByName(s, spec)) usage(("unknown size " + s + " (S, M or L)").c_str());
+                if (!worldByName(s, spec)) usage(("unknown size " + s + " (S, M, L, D, D2k or R)").c_str());
                 o.sizes.push_back(spec.name);
             }
         } else if (a == "--work") {
@@ -138,13 +139,13 @@ Options parseArgs(int argc, char** argv) {
             for (std::string sz; std::getline(ss, sz, ',');) {
                 if (sz == "none") continue;
                 WorldSpec spec;
-                if (!worldByName(sz, spec)) usage(("unknown size " + sz + " (S, M, L or none)").c_str());
+                if (!worldByName(sz, spec)) usage(("unknown size " + sz + " (S, M, L, D, D2k, R or none)").c_str());
                 o.gpuBaselineSizes.push_back(spec.name);
             }
         } else if (a == "--gpu-res") {
             o.gpuBaselineResolution = int(number(value()));
             if (o.gpuBaselineResolution < 1) usage("--gpu-res must be positive");
-        } else if (a == "--gen-only") {
+        } else if (a == "--gen-only" || a == "--generate-only") {
             o.genOnly = true;
         } else if (a == "--json") {
             o.jsonOut = value();
@@ -564,7 +565,8 @@ void printWorlds(const std::vector<WorldRun>& runs) {
                                     : "?";
         std::printf("| %s (%dx%d) | %d | %s | %s | %s | %s (+ %s) | %s | %s | %s / %s | %d (%s) | %s | %d / %d / %d | %.1f MB | %s | %s%s | %s |\n",
                     w.spec.name.c_str(), w.spec.chunksX, w.spec.chunksZ, s["chunks"].get<int>(),
-                    count(s["models"].get<uint64_t>()).c_str(), count(kind("tree")).c_str(), count(kind("rock")).c_str(),
+                    count(s["models"].get<uint64_t>()).c_str(), count(kind("tree")).c_str(),
+                    (count(kind("rock")) + (kind("sheet") ? " + " + count(kind("sheet")) + " sheets" : std::string())).c_str(),
                     count(kind("building")).c_str(), count(kind("interior")).c_str(), count(kind("prop")).c_str(),
                     count(kind("grass")).c_str(), count(kind("floating")).c_str(), count(kind("hidden")).c_str(),
                     s["uniqueMeshes"].get<int>(), count(s["uniqueMeshTriangles"].get<uint64_t>()).c_str(),
@@ -914,6 +916,36 @@ int main(int argc, char** argv) {
                                            : (L->partial() ? "NOT met (projected)" : "NOT met"));
     } else {
         std::printf("| peak memory of L < %.0f GiB | n/a (L not baked) | not measured |\n", kTargetMemoryGiB);
+    }
+
+    // Issue 13: the whole bake of the dense world against the same placements of 2k-triangle
+    // meshes (D2k), both baked in this run.
+    {
+        const WorldRun* D = nullptr;
+        const WorldRun* D2k = nullptr;
+        for (const WorldRun& w : runs) {
+            if (w.spec.name == "D" && w.baked) D = &w;
+            if (w.spec.name == "D2k" && w.baked) D2k = &w;
+        }
+        if (D || D2k) {
+            std::printf("\n## Targets (issue 13), measured side by side in this run\n\n| target | measured | status |\n|---|---|---|\n");
+            if (D && D2k && D->bake["chunksBaked"] == D2k->bake["chunksBaked"]) {
+                const double ratio = D->bake["totalSeconds"].get<double>() / D2k->bake["totalSeconds"].get<double>();
+                const double cpuRatio = D->bake["cpuSeconds"].get<double>() / D2k->bake["cpuSeconds"].get<double>();
+                std::printf("| whole bake of D within %.0fx of D2k (same placements, 2k-triangle meshes) | %.2fx (D %s s, D2k %s s; "
+                            "CPU time %.2fx)%s | %s |\n",
+                            kTargetDenseRatio, ratio, seconds(D->bake["totalSeconds"].get<double>()).c_str(),
+                            seconds(D2k->bake["totalSeconds"].get<double>()).c_str(), cpuRatio,
+                            D->partial() ? fmt(", %.0f chunks of each", D->bake["chunksBaked"].get<double>()).c_str() : "",
+                            ratio <= kTargetDenseRatio ? "met" : "NOT met");
+            } else {
+                std::printf("| whole bake of D within %.0fx of D2k | n/a (needs D and D2k on the same chunks: --sizes D,D2k) | not "
+                            "measured |\n",
+                            kTargetDenseRatio);
+            }
+            std::printf("| geometry stage >= 10x faster on D, >= 3x on R than before commit 82a0666, same verdicts | not measured "
+                        "by this program (needs the old code): see docs/performance.md, issue 13 | not measured |\n");
+        }
     }
 
     // Other processes on the machine skew wall times (and so every ratio above).

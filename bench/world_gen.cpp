@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -38,6 +39,8 @@ namespace {
 
 // Bump when the generator's output changes: cached worlds are keyed by it.
 constexpr uint64_t kGeneratorVersion = 3;
+// The same for the issue-13 worlds (D, D2k, R) alone, so that S, M and L stay cached.
+constexpr uint64_t kIssue13GeneratorVersion = 1;
 constexpr double kPi = 3.14159265358979323846;
 
 // ---------------------------------------------------------------------------------------
@@ -348,10 +351,13 @@ MeshSpec drone() {
 
 struct Landscape {
     std::array<double, 5> amp{}, freq{}, cosT{}, sinT{}, phase{};
-    double fPhase = 0, fCos = 1, fSin = 0;
-    explicit Landscape(uint64_t seed) {
+    double fPhase = 0, fCos = 1, fSin = 0, base = 12.0;
+    // S, M, L: hills between -6 and 30 m.
+    explicit Landscape(uint64_t seed) : Landscape(seed, {10.0, 5.0, 2.0, 0.6, 0.25}, {520, 230, 90, 38, 17}, 12.0) {}
+    // Five waves of amplitude a[k] (metres) and wavelength wl[k] about `base0` (the same
+    // draws from the seed whatever the waves).
+    Landscape(uint64_t seed, const std::array<double, 5>& a, const std::array<double, 5>& wl, double base0) : base(base0) {
         DeterministicRng rng(mix64(seed ^ 0x7E44A1Bull));
-        const std::array<double, 5> a = {10.0, 5.0, 2.0, 0.6, 0.25}, wl = {520, 230, 90, 38, 17};
         for (size_t k = 0; k < 5; ++k) {
             const double t = rng.uniform(0, 2 * kPi);
             amp[k] = a[k];
@@ -365,9 +371,10 @@ struct Landscape {
         fCos = std::cos(t);
         fSin = std::sin(t);
     }
-    // Metres, within [-6, 30] (stored between -20 and 45).
+    // Metres, within base +- reach() (S, M, L: [-6, 30], stored between -20 and 45).
+    double reach() const { return amp[0] + amp[1] + amp[2] + amp[3] + amp[4]; }
     double height(double x, double z) const {
-        double h = 12.0;
+        double h = base;
         for (size_t k = 0; k < 5; ++k) h += amp[k] * std::sin(freq[k] * (x * cosT[k] + z * sinT[k]) + phase[k]);
         return h;
     }
@@ -392,6 +399,340 @@ uint64_t directorySize(const fs::path& dir, uint64_t& files) {
             ++files;
         }
     return bytes;
+}
+
+// ---------------------------------------------------------------------------------------
+// Issue 13: dense scanned meshes (D, D2k) and a real-map-like world (R)
+
+// A geodesic sphere on the octahedron at frequency n: 8 n^2 triangles, 4 n^2 + 2 vertices.
+// Vertex (a, b, c), integers with |a| + |b| + |c| = n, has direction (a, b, c) / |(a, b, c)|;
+// every triangle is wound counter-clockwise seen from outside, decided exactly on the
+// integer points (det > 0: the origin lies behind it).
+struct GeoSphere {
+    std::vector<glm::dvec3> dirs;
+    std::vector<std::array<int, 3>> tris;
+};
+
+GeoSphere geoSphere(int n) {
+    GeoSphere s;
+    std::map<std::array<int, 3>, int> index;
+    std::vector<std::array<long long, 3>> ip;
+    auto vertex = [&](int a, int b, int c) {
+        const std::array<int, 3> key{a, b, c};
+        auto it = index.find(key);
+        if (it != index.end()) return it->second;
+        s.dirs.push_back(glm::normalize(glm::dvec3(a, b, c)));
+        ip.push_back({a, b, c});
+        return index[key] = int(s.dirs.size()) - 1;
+    };
+    auto add = [&](int a, int b, int c) {
+        const auto &A = ip[size_t(a)], &B = ip[size_t(b)], &C = ip[size_t(c)];
+        const long long det = A[0] * (B[1] * C[2] - B[2] * C[1]) - A[1] * (B[0] * C[2] - B[2] * C[0]) +
+                              A[2] * (B[0] * C[1] - B[1] * C[0]);
+        if (det > 0) s.tris.push_back({a, b, c});
+        else s.tris.push_back({a, c, b});
+    };
+    for (int sx : {1, -1})
+        for (int sy : {1, -1})
+            for (int sz : {1, -1}) {
+                auto P = [&](int i, int j) { return vertex(sx * i, sy * j, sz * (n - i - j)); };
+                for (int i = 0; i < n; ++i)
+                    for (int j = 0; j < n - i; ++j) {
+                        add(P(i, j), P(i + 1, j), P(i, j + 1));
+                        if (i + j < n - 1) add(P(i + 1, j), P(i + 1, j + 1), P(i, j + 1));
+                    }
+            }
+    return s;
+}
+
+// A ridged wave: 1 - 2 |sin(.)| in [-1, 1], a sharp crest where the sine crosses zero.
+double ridge(double x) { return 1.0 - 2.0 * std::abs(std::sin(x)); }
+
+// The surface of a scanned rock: its radius along each direction, `radius` times 1 plus
+// octaves of ridged waves (4 random directions per octave, frequency doubling, amplitude
+// 0.55x per octave: from broad lumps to crests a few centimetres apart), then stretched by
+// positive `axes`. A function of the direction only, so that every tessellation samples
+// the same shape.
+struct RockShape {
+    struct Wave {
+        glm::dvec3 dir;
+        double freq, amp, phase;
+    };
+    double radius = 1;
+    glm::dvec3 axes{1.0};
+    std::vector<Wave> waves;
+
+    RockShape(uint64_t seed, double radius0, const glm::dvec3& axes0, double amplitude, int octaves)
+        : radius(radius0), axes(axes0) {
+        DeterministicRng rng(mix64(seed ^ 0x5CA7ull));
+        for (int o = 0; o < octaves; ++o)
+            for (int k = 0; k < 4; ++k)
+                waves.push_back({randomUnit(rng), 3.0 * std::pow(2.0, o) * rng.uniform(0.8, 1.25),
+                                 amplitude * std::pow(0.55, o) * rng.uniform(0.7, 1.0), rng.uniform(0, 2 * kPi)});
+    }
+    double radiusAlong(const glm::dvec3& u) const {
+        double f = 1.0;
+        for (const Wave& w : waves) f += w.amp * ridge(w.freq * glm::dot(u, w.dir) + w.phase);
+        return radius * std::max(f, 0.35);
+    }
+    // Half the nominal height (the placement's unit for burying it; ridges add ~15 %).
+    double halfHeight() const { return radius * axes.y; }
+    double footprint() const { return radius * std::max(axes.x, axes.z); }
+};
+
+// A closed jagged rock: the geodesic sphere of frequency n, each vertex at the shape's
+// radius times (1 +- a quarter of an edge's angle) along its own direction, then stretched
+// by the axes. A positive radius along each vertex's own direction and a positive diagonal
+// stretch keep det(a, b, c) > 0 for every triangle: counter-clockwise seen from outside,
+// non-degenerate, a closed star-shaped surface. Checked on the rounded positions.
+MeshSpec scannedRock(const RockShape& shape, int n, uint64_t seed, const std::string& material) {
+    const GeoSphere sphere = geoSphere(n);
+    DeterministicRng rng(mix64(seed ^ 0x7E77ull));
+    const double jitter = 0.25 * (kPi / 2) / n;
+    MeshSpec m;
+    const int g = m.addGroup(GroupSpec::named(material));
+    m.positions.reserve(sphere.dirs.size());
+    for (const glm::dvec3& u : sphere.dirs) {
+        const glm::dvec3 p = shape.axes * (shape.radiusAlong(u) * rng.uniform(1.0 - jitter, 1.0 + jitter) * u);
+        m.addVertex({round6(p.x), round6(p.y), round6(p.z)});
+    }
+    m.triangles.reserve(sphere.tris.size());
+    m.triangleGroup.reserve(sphere.tris.size());
+    for (const auto& t : sphere.tris) {
+        const glm::dvec3 &a = m.positions[size_t(t[0])], &b = m.positions[size_t(t[1])], &c = m.positions[size_t(t[2])];
+        const glm::dvec3 nrm = glm::cross(b - a, c - a);
+        if (!(glm::dot(nrm, a) > 0) || !(glm::length(nrm) > 1e-12))
+            throw std::logic_error("world: a scanned rock triangle is degenerate or inward (" + material + ")");
+        m.addTriangle(t[0], t[1], t[2], g);
+    }
+    return m;
+}
+
+// An open jagged sheet (a scanned outcrop of bedrock): a heightfield over w x d metres
+// (centred on the origin) of n x n quads, a dome `height` m high plus octaves of ridged
+// waves (wavelengths 6 m down to 0.19 m) and a per-vertex jitter of a quarter cell; the
+// quads split along alternating diagonals. Every triangle faces up (counter-clockwise
+// seen from above) and is non-degenerate; checked.
+MeshSpec scannedSheet(uint64_t seed, double w, double d, double height, int n, const std::string& material) {
+    DeterministicRng rng(mix64(seed ^ 0x5EE7ull));
+    struct Wave {
+        double c, s, freq, amp, phase;
+    };
+    std::vector<Wave> waves;
+    for (int o = 0; o < 6; ++o)
+        for (int k = 0; k < 3; ++k) {
+            const double t = rng.uniform(0, 2 * kPi);
+            waves.push_back({std::cos(t), std::sin(t), 2 * kPi / (6.0 * std::pow(0.5, o)) * rng.uniform(0.8, 1.25),
+                             0.3 * std::pow(0.55, o) * rng.uniform(0.7, 1.0), rng.uniform(0, 2 * kPi)});
+        }
+    const double cell = std::min(w, d) / n, jitter = 0.25 * cell;
+    MeshSpec m;
+    const int g = m.addGroup(GroupSpec::named(material));
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) {
+            const double x = -w / 2 + w * i / n, z = -d / 2 + d * j / n;
+            const double r2 = (2 * x / w) * (2 * x / w) + (2 * z / d) * (2 * z / d);
+            double h = height * std::exp(-2.0 * r2);
+            for (const Wave& wv : waves) h += wv.amp * ridge(wv.freq * (x * wv.c + z * wv.s) + wv.phase);
+            h += rng.uniform(-jitter, jitter);
+            m.addVertex({round6(x), round6(h), round6(z)});
+        }
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const int a = j * (n + 1) + i, b = a + 1, c = a + n + 1, e = c + 1;
+            const std::array<std::array<int, 3>, 2> tris =
+                (i + j) % 2 == 0 ? std::array<std::array<int, 3>, 2>{{{a, c, b}, {b, c, e}}}
+                                 : std::array<std::array<int, 3>, 2>{{{a, c, e}, {a, e, b}}};
+            for (const auto& t : tris) {
+                const glm::dvec3 &p = m.positions[size_t(t[0])], &q = m.positions[size_t(t[1])], &r = m.positions[size_t(t[2])];
+                const glm::dvec3 nrm = glm::cross(q - p, r - p);
+                if (!(nrm.y > 0) || !(glm::length(nrm) > 1e-12))
+                    throw std::logic_error("world: a scanned sheet triangle is degenerate or faces down (" + material + ")");
+                m.addTriangle(t[0], t[1], t[2], g);
+            }
+        }
+    return m;
+}
+
+// Chunk-local spots for the issue-13 worlds: `clear` metres from what is taken and
+// `margin` from the chunk's edges; after 40 tries the last one anyway.
+struct SpotPicker {
+    DeterministicRng& rng;
+    double cx, cz, S;
+    std::vector<Disc> taken;
+    std::pair<double, double> operator()(double clear, double margin) {
+        double x = 0, z = 0;
+        for (int attempt = 0; attempt < 40; ++attempt) {
+            x = cx + rng.uniform(margin, S - margin);
+            z = cz + rng.uniform(margin, S - margin);
+            bool ok = true;
+            for (const Disc& d : taken)
+                if ((x - d.x) * (x - d.x) + (z - d.z) * (z - d.z) < (d.r + clear) * (d.r + clear)) {
+                    ok = false;
+                    break;
+                }
+            if (ok) break;
+        }
+        taken.push_back({x, z, clear});
+        return {x, z};
+    }
+};
+
+// Dense (D, D2k) and real-map-like (R) worlds; see world_gen.h.
+WorldStats writeIssue13World(const WorldSpec& spec, const std::string& dir) {
+    const auto t0 = std::chrono::steady_clock::now();
+    WorldStats st;
+    const bool dense = spec.kind == WorldKind::Dense;
+    const double S = spec.chunkSize;
+    SpaceOptions opt;
+    opt.chunkSize = S;
+    opt.neighbours = testing::NeighbourSpec::all(spec.neighbours);
+    SpaceBuilder b(opt);
+
+    std::map<std::string, uint64_t> triangles;
+    auto mesh = [&](const std::string& name, const MeshSpec& m) {
+        b.addMesh(name, m);
+        triangles[name] = m.triangles.size();
+        st.uniqueMeshTriangles += m.triangles.size();
+        ++st.uniqueMeshes;
+    };
+
+    // Terrain: rolling hills, no wave shorter than 30 m (17 x 17 samples: 4 m apart).
+    const Landscape land = dense ? Landscape(spec.seed, {6.0, 3.0, 1.2, 0.4, 0.0}, {400, 180, 70, 30, 17}, 8.0)
+                                 : Landscape(spec.seed, {9.0, 4.5, 1.8, 0.5, 0.0}, {600, 260, 110, 45, 17}, 10.0);
+    const double hLo = std::floor(land.base - land.reach() - 4), hHi = std::ceil(land.base + land.reach() + 4);
+    const int gx0 = -(spec.chunksX / 2), gz0 = -(spec.chunksZ / 2);
+    for (int i = 0; i < spec.chunksX; ++i)
+        for (int j = 0; j < spec.chunksZ; ++j)
+            b.addTerrain(gx0 + i, gz0 + j, spec.terrainSamples, [&land](double x, double z) { return land.height(x, z); },
+                         hLo, hHi);
+    st.chunks = spec.chunksX * spec.chunksZ;
+    st.terrainTriangles = 2ull * uint64_t(spec.terrainSamples - 1) * uint64_t(spec.terrainSamples - 1) * uint64_t(st.chunks);
+    st.placedTriangles = st.terrainTriangles;
+    auto ground = [&](double x, double z) { return *b.terrainHeightAt(x, z); };
+    auto lowestGround = [&](double x, double z, double r) {
+        double lo = ground(x, z);
+        for (int q = 0; q < 8; ++q) {
+            const double a = q * 0.25 * kPi;
+            lo = std::min(lo, ground(x + r * std::cos(a), z + r * std::sin(a)));
+        }
+        return lo;
+    };
+    auto place = [&](const std::string& kind, const std::string& meshName, const Affine& a) {
+        b.addModel(meshName, a);
+        ++st.byKind[kind];
+        ++st.models;
+        st.placedTriangles += triangles.at(meshName);
+    };
+    auto dirFrom = [](double elevationDeg, double azimuthDeg) {
+        const double e = elevationDeg * kPi / 180, a = azimuthDeg * kPi / 180;
+        return glm::dvec3(round6(std::cos(e) * std::cos(a)), round6(-std::sin(e)), round6(std::cos(e) * std::sin(a)));
+    };
+    DeterministicRng lightRng(mix64(spec.seed ^ 0x11647ull));
+    const double k = spec.objectsPerChunk;
+
+    if (dense) {
+        // Three closed scanned rocks and one open sheet; the shapes do not depend on the
+        // tessellation (D2k: ~2k triangles each, the same surfaces sampled coarser).
+        struct Rock {
+            const char* name;
+            RockShape shape;
+            int n;  // geodesic frequency of the dense mesh: 8 n^2 triangles
+        };
+        const std::array<Rock, 3> rocks = {{{"scan_boulder", RockShape(1301, 2.6, {1.15, 0.7, 1.0}, 0.1, 6), 150},
+                                            {"scan_rock", RockShape(1302, 1.8, {1.0, 0.8, 0.85}, 0.12, 6), 112},
+                                            {"scan_stone", RockShape(1303, 1.1, {1.2, 0.6, 0.9}, 0.12, 6), 80}}};
+        const double ledgeW = 14, ledgeD = 10, ledgeH = 1.6;
+        const int coarseRock = std::max(1, int(std::lround(std::sqrt(spec.meshTriangles / 8.0))));
+        const int coarseSheet = std::max(1, int(std::lround(std::sqrt(spec.meshTriangles / 2.0))));
+        for (size_t r = 0; r < rocks.size(); ++r)
+            mesh(rocks[r].name, scannedRock(rocks[r].shape, spec.meshTriangles > 0 ? coarseRock : rocks[r].n, 1301 + r, "stone"));
+        mesh("scan_ledge", scannedSheet(1304, ledgeW, ledgeD, ledgeH, spec.meshTriangles > 0 ? coarseSheet : 160, "bedrock"));
+
+        // A slanted sun with a small bias, and one lamp near the centre.
+        b.addLight(LightSpec::directional("sun", {0.4, -1.0, 0.3}).withBias(0.03));
+        {
+            const double x = mm(lightRng.uniform(-20, 20)), z = mm(lightRng.uniform(-20, 20));
+            b.addLight(LightSpec::point("lamp", {x, mm(ground(x, z) + 5.0), z}, 40.0));
+        }
+        st.directionalLights = 1;
+        st.pointLights = 1;
+
+        for (int i = 0; i < spec.chunksX; ++i)
+            for (int j = 0; j < spec.chunksZ; ++j) {
+                const int gx = gx0 + i, gz = gz0 + j;
+                DeterministicRng rng(chunkSeed(spec.seed, gx, gz, 13));
+                SpotPicker spot{rng, gx * S, gz * S, S, {}};
+                const int n = int(std::lround(k * rng.uniform(0.7, 1.3)));
+                for (int q = 0; q < n; ++q) {
+                    const int type = rng.below(20);
+                    const double s = rng.uniform(0.75, 1.3);
+                    const glm::dvec3 scale(s * rng.uniform(0.9, 1.1), s * rng.uniform(0.9, 1.1), s * rng.uniform(0.9, 1.1));
+                    const double yaw = std::round(rng.uniform(0, 360));
+                    if (type >= 17) {  // the ledge, its rim under the ground and its dome out
+                        const double half = 0.5 * std::max(ledgeW, ledgeD) * s;
+                        const auto [x, z] = spot(half, std::min(half, S / 4));
+                        const double y = lowestGround(x, z, 0.45 * std::min(ledgeW, ledgeD) * s) - rng.uniform(0.3, 0.9);
+                        place("sheet", "scan_ledge", placed({x, y, z}, yaw, scale));
+                        continue;
+                    }
+                    const Rock& rock = rocks[type < 4 ? 0 : type < 11 ? 1 : 2];
+                    const double foot = rock.shape.footprint() * s, hh = rock.shape.halfHeight() * scale.y;
+                    const auto [x, z] = spot(foot, std::min(foot, S / 4));
+                    // Resting (sunk 15 %), half-buried (40-60 % of its height) or nearly
+                    // buried (80-105 %: a scanned top showing, or nothing).
+                    const int burial = rng.below(20);
+                    const double sink = burial < 7 ? 0.3 * hh : burial < 16 ? rng.uniform(0.8, 1.2) * hh : rng.uniform(1.6, 2.1) * hh;
+                    place("rock", rock.name, placed({x, lowestGround(x, z, 0.6 * foot) + hh - sink, z}, yaw, scale));
+                }
+            }
+    } else {
+        // Six small rocks, 200-392 triangles.
+        std::vector<RockShape> shapes;
+        const std::array<glm::dvec3, 6> axes = {{{1.1, 0.6, 0.9}, {1.0, 0.75, 1.0}, {1.25, 0.5, 0.8},
+                                                 {0.9, 0.85, 0.9}, {1.2, 0.65, 1.0}, {1.0, 0.45, 1.1}}};
+        const std::array<int, 6> freq = {5, 6, 7, 5, 6, 7};
+        std::vector<std::string> names;
+        for (size_t r = 0; r < 6; ++r) {
+            shapes.emplace_back(1401 + r, 1.0, axes[r], 0.12, 4);
+            names.push_back(std::string("stone_") + char('a' + r));
+            mesh(names.back(), scannedRock(shapes.back(), freq[r], 1401 + r, "stone"));
+        }
+        b.addLight(LightSpec::directional("sun_low", dirFrom(17, 35)).withBias(0.05));
+        st.directionalLights = 1;
+
+        for (int i = 0; i < spec.chunksX; ++i)
+            for (int j = 0; j < spec.chunksZ; ++j) {
+                const int gx = gx0 + i, gz = gz0 + j;
+                DeterministicRng rng(chunkSeed(spec.seed, gx, gz, 17));
+                const double cx = gx * S, cz = gz * S;
+                SpotPicker spot{rng, cx, cz, S, {}};
+                // Rock fields and open grassland: 0.4x to 1.6x the mean density.
+                const double density = 0.4 + 1.2 * land.forest(cx + S / 2, cz + S / 2);
+                const int n = int(std::floor(k * density + rng.uniform(0, 1)));
+                for (int q = 0; q < n; ++q) {
+                    const size_t type = size_t(rng.below(6));
+                    const double s = std::exp(rng.uniform(std::log(0.3), std::log(2.2)));
+                    const glm::dvec3 scale(s * rng.uniform(0.85, 1.15), s * rng.uniform(0.85, 1.15), s * rng.uniform(0.85, 1.15));
+                    const double foot = shapes[type].footprint() * s, hh = shapes[type].halfHeight() * scale.y;
+                    const auto [x, z] = spot(0.8 * foot, 0.5);
+                    // Most half-buried (35-60 % of the height), some resting, a few nearly buried.
+                    const int burial = rng.below(10);
+                    const double sink = burial < 6   ? rng.uniform(0.7, 1.2) * hh
+                                        : burial < 9 ? rng.uniform(0.2, 0.4) * hh
+                                                     : rng.uniform(1.4, 1.9) * hh;
+                    place("rock", names[type],
+                          placed({x, lowestGround(x, z, 0.6 * foot) + hh - sink, z}, rng.uniform(0, 360), scale));
+                }
+            }
+    }
+    st.lights = st.directionalLights + st.pointLights + st.spotLights;
+    const auto t1 = std::chrono::steady_clock::now();
+    st.buildSeconds = std::chrono::duration<double>(t1 - t0).count();
+    b.write(dir);
+    st.writeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    st.bytesOnDisk = directorySize(dir, st.files);
+    return st;
 }
 
 }  // namespace
@@ -420,10 +761,53 @@ WorldSpec worldL() {
     return s;
 }
 
+// Issue 13: dense scanned meshes on 6 x 6 chunks of 64 m, 14 placements per chunk on
+// average (10-18), terrain at 17 x 17 samples; a sun and one point light.
+WorldSpec worldD() {
+    WorldSpec s;
+    s.name = "D";
+    s.kind = WorldKind::Dense;
+    s.chunksX = s.chunksZ = 6;
+    s.seed = 0xD3175Eull;
+    s.objectsPerChunk = 14;
+    s.chunkSize = 64;
+    s.terrainSamples = 17;
+    s.localLights = 1;
+    return s;
+}
+
+// D with every unique mesh at 2,048 triangles: the same seed, so the same placements.
+WorldSpec worldD2k() {
+    WorldSpec s = worldD();
+    s.name = "D2k";
+    s.meshTriangles = 2000;
+    return s;
+}
+
+// Real-map-like: 20 x 20 chunks of 64 m, terrain at 17 x 17 samples, ~120 small rocks per
+// chunk (48 to 192 with the local density), a low sun.
+WorldSpec worldR() {
+    WorldSpec s;
+    s.name = "R";
+    s.kind = WorldKind::RealMap;
+    s.chunksX = s.chunksZ = 20;
+    s.seed = 0x8EA1A4ull;
+    s.objectsPerChunk = 120;
+    s.chunkSize = 64;
+    s.terrainSamples = 17;
+    s.localLights = 0;
+    return s;
+}
+
 bool worldByName(const std::string& name, WorldSpec& out) {
-    if (name == "S" || name == "s") out = worldS();
-    else if (name == "M" || name == "m") out = worldM();
-    else if (name == "L" || name == "l") out = worldL();
+    std::string n;
+    for (char c : name) n += char(std::toupper(static_cast<unsigned char>(c)));
+    if (n == "S") out = worldS();
+    else if (n == "M") out = worldM();
+    else if (n == "L") out = worldL();
+    else if (n == "D") out = worldD();
+    else if (n == "D2K") out = worldD2k();
+    else if (n == "R") out = worldR();
     else return false;
     return true;
 }
@@ -433,6 +817,9 @@ uint64_t specHash(const WorldSpec& s) {
     o << "v" << kGeneratorVersion << "|" << s.name << "|" << s.chunksX << "x" << s.chunksZ << "|" << s.seed << "|"
       << testing::formatNumber(s.objectsPerChunk) << "|" << testing::formatNumber(s.chunkSize) << "|" << s.terrainSamples
       << "|" << s.localLights << "|" << s.neighbours;
+    // Fields added with issue 13: only in the other kinds' keys, so that the cached S, M and
+    // L worlds stay valid (their output did not change).
+    if (s.kind != WorldKind::Forest) o << "|kind" << int(s.kind) << "|" << s.meshTriangles << "|i13v" << kIssue13GeneratorVersion;
     uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a
     for (unsigned char c : o.str()) {
         h ^= c;
@@ -454,6 +841,7 @@ WorldStats writeWorld(const WorldSpec& spec, const std::string& dir) {
         throw std::invalid_argument("world: at most 29 point/spot lights (32 lights in all)");
     if (!(spec.objectsPerChunk >= 0) || !(spec.chunkSize > 0) || spec.terrainSamples < 2)
         throw std::invalid_argument("world: bad density, chunk size or terrain samples");
+    if (spec.kind != WorldKind::Forest) return writeIssue13World(spec, dir);
     const auto t0 = std::chrono::steady_clock::now();
     WorldStats st;
     const double S = spec.chunkSize;

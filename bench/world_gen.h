@@ -16,6 +16,15 @@
 // Deterministic: SplitMix64 (testing::DeterministicRng) seeded per chunk from the world
 // seed and the chunk's grid position, our own formulas for every distribution, no
 // std::random_device or std distributions; the same spec writes the same bytes.
+//
+// Two more kinds of world (issue 13), on 64 m chunks with terrain at 17 x 17 samples:
+// - Dense (D): a few unique scanned-rock-like meshes of 50k-180k triangles (three closed
+//   jagged solids and one open jagged sheet), instanced 10-18 times per chunk, resting,
+//   half-buried or nearly buried in the terrain; a slanted sun and one point light. D2k:
+//   the same placements (same seed, same transforms) of the same shapes tessellated with
+//   about 2k triangles each.
+// - Real-map-like (R): rolling hills and many small rocks (a few hundred triangles each,
+//   six unique), most of them half-buried, under a low sun (17 degrees).
 #pragma once
 
 #include <cstdint>
@@ -24,8 +33,16 @@
 
 namespace shadowcull::bench {
 
+// What a world holds (see the top of this file).
+enum class WorldKind {
+    Forest,   // S, M, L (issue 6)
+    Dense,    // D, D2k (issue 13)
+    RealMap,  // R (issue 13)
+};
+
 struct WorldSpec {
     std::string name = "custom";  // for reports and cache directory names
+    WorldKind kind = WorldKind::Forest;
     int chunksX = 3, chunksZ = 3;  // grid size; chunks gx in [-chunksX/2, chunksX - chunksX/2)
     uint64_t seed = 1;
     double objectsPerChunk = 280.0;  // models per chunk (terrain not counted)
@@ -33,6 +50,9 @@ struct WorldSpec {
     int terrainSamples = 33;         // N x N heightmap per chunk
     int localLights = 20;            // point + spot lights over the whole world (plus 3 directional)
     int neighbours = 1;              // chunks loaded on each side of the baked one
+    // Dense worlds: 0 for the dense meshes (51k-180k triangles), else every unique mesh
+    // tessellated with about this many triangles (D2k: 2048), placements unchanged.
+    int meshTriangles = 0;
 };
 
 // The benchmark sizes of issue 6. Same density everywhere (280 models per chunk), so that
@@ -40,7 +60,11 @@ struct WorldSpec {
 WorldSpec worldS();  // 3 x 3 chunks, ~2.5k models
 WorldSpec worldM();  // 10 x 10 chunks, ~28k models
 WorldSpec worldL();  // 30 x 30 chunks, ~250k models
-// "S", "M", "L" (case-insensitive); false for anything else.
+// Issue 13.
+WorldSpec worldD();    // 6 x 6 chunks of 64 m, dense meshes (51k-180k triangles), ~500 placements
+WorldSpec worldD2k();  // D with every mesh at 2,048 triangles (same placements)
+WorldSpec worldR();    // 20 x 20 chunks of 64 m, ~48k small rocks, low sun
+// "S", "M", "L", "D", "D2k", "R" (case-insensitive); false for anything else.
 bool worldByName(const std::string& name, WorldSpec& out);
 
 // A hash of every field of the spec and of the generator's version: the cache key of a
