@@ -238,16 +238,11 @@ FrustumFilter::FrustumFilter(const Triangle& t, const LightGeometry& light, doub
     planes_[3] = Plane{n, t[0], dilation > 0 ? dilation * glm::length(n) * (1 + 1e-9) : 0.0,
                        glm::length(e1) * glm::length(e2) + glm::length(n), {0, 1}};
     for (int e = 0; e < 3; ++e) {
-        const glm::dvec3 tp = t[size_t(e)], tq = t[size_t((e + 1) % 3)], tr = t[size_t((e + 2) % 3)];
-        const glm::dvec3 a = light.directional ? tq - tp : tp - light.position;
-        const glm::dvec3 b = light.directional ? light.direction : tq - light.position;
-        glm::dvec3 sn = glm::cross(a, b);
-        const glm::dvec3 o = light.directional ? tp : light.position;
-        const double scale = glm::length(a) * glm::length(b) + glm::length(sn);
-        const glm::dvec3 dr = tr - o;
-        const double inside = glm::dot(sn, dr);
-        if (!(std::abs(inside) > 1e-12 * scale * (std::abs(dr.x) + std::abs(dr.y) + std::abs(dr.z)) + 1e-300)) return;
-        if (inside < 0) sn = -sn;
+        SidePlane side;
+        if (!doubleSidePlane(t, e, light, side)) return;
+        const glm::dvec3& sn = side.n;
+        const glm::dvec3& o = side.o;
+        const double scale = side.scale;
         planes_[e] = Plane{sn, o, dilation > 0 ? dilation * glm::length(sn) * (1 + 1e-9) : 0.0, scale, {e, (e + 1) % 3}};
     }
     // The near plane holds all three caster vertices; sides hold the two of their edge.
@@ -321,6 +316,20 @@ bool FrustumFilter::certainlyMisses(const Triangle& r, double beta) const {
     for (int e = 0; e < 3; ++e)
         if (outside(planes_[e], r, 0.0)) return true;
     return false;
+}
+
+bool doubleSidePlane(const Triangle& t, int e, const LightGeometry& light, SidePlane& out) {
+    const glm::dvec3 tp = t[size_t(e)], tq = t[size_t((e + 1) % 3)], tr = t[size_t((e + 2) % 3)];
+    const glm::dvec3 a = light.directional ? tq - tp : tp - light.position;
+    const glm::dvec3 b = light.directional ? light.direction : tq - light.position;
+    out.n = glm::cross(a, b);
+    out.o = light.directional ? tp : light.position;
+    out.scale = glm::length(a) * glm::length(b) + glm::length(out.n);
+    const glm::dvec3 dr = tr - out.o;
+    const double inside = glm::dot(out.n, dr);
+    if (!(std::abs(inside) > 1e-12 * out.scale * (std::abs(dr.x) + std::abs(dr.y) + std::abs(dr.z)) + 1e-300)) return false;
+    if (inside < 0) out.n = -out.n;
+    return true;
 }
 
 int exactFacing(const Triangle& r, bool mirrored, const LightGeometry& light) {

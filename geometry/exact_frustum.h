@@ -95,6 +95,17 @@ private:
     Plane planes_[4];  // three sides, then the near plane (the caster's own)
 };
 
+// The side half-space of a caster's frustum through edge e (vertices e and e + 1), in
+// double: normal `n` (not unit) towards the frustum's inside, through `o` (the edge's
+// first vertex, or a point light's position); `scale` sizes the rounding of n (|a||b| + |n|
+// of the cross product it comes from). Nothing when the side is not certain in double
+// (the third vertex on the plane within rounding: the caster edge-on).
+struct SidePlane {
+    glm::dvec3 n{0.0}, o{0.0};
+    double scale = 0.0;
+};
+bool doubleSidePlane(const Triangle& caster, int e, const LightGeometry& light, SidePlane& out);
+
 // Exact facing: +1 when the light meets the receiver's front (counter-clockwise side, or
 // the other side when `mirrored`), -1 when it meets the back, 0 when the light is in the
 // receiver's plane (grazing: a one-sided receiver then receives nothing).

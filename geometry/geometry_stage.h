@@ -8,6 +8,7 @@
 #pragma once
 
 #include "core/stage.h"
+#include "geometry/box_tree.h"
 
 namespace shadowcull::geometry {
 
@@ -28,8 +29,12 @@ public:
     // loaded might have been a receiver.
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
 
+    // Meshes whose trees are kept (for tests: the cache follows the window).
+    size_t cachedMeshTrees() const { return trees_.size(); }
+
 private:
     GeometryOptions options_;
+    MeshTreeCache trees_;  // per unique mesh, kept while windows hold it
 };
 
 }  // namespace shadowcull::geometry

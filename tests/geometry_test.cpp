@@ -468,6 +468,27 @@ TEST(GeometryStage, FastPathEqualsTheExhaustiveReference) {
              b.addFlatTerrain(0, 0, 0.015);
              b.addModel("sheet", Affine::translation({50, 0, 50}));
          }},
+        // Instances whose mesh coordinates are not the window's: the broad phase queries
+        // each mesh's tree in its own coordinates.
+        {"turned, scaled, tilted and mirrored sheets on a floor", [](SpaceBuilder& b) {
+             b.addMesh("floor", quadFacing(0, true, 20));
+             b.addModel("floor", Affine::translation({40, 0, 40}));
+             b.addModel("sheet", Affine::rotationY(33).then(Affine::scaling({1.3, 0.7, 0.9})).then(Affine::translation({50, 0.05, 50})));
+             b.addModel("sheet", Affine::scaling({-1, 1, 1}).then(Affine::translation({47, 0.3, 46})));
+             Affine tilt;  // about x by ~25 degrees, then lifted
+             tilt.row1 = {0, 0.906, 0.423};
+             tilt.row2 = {0, -0.423, 0.906};
+             tilt.row3 = {52, 0.8, 53};
+             b.addModel("sheet", tilt);
+         }},
+        // Buried: whole clusters of casters are decided at once (their shadows stay under
+        // the terrain), beside a sheet that crosses the surface.
+        {"sheets buried in a terrain", [](SpaceBuilder& b) {
+             b.addFlatTerrain(0, 0, 0.5);
+             b.addModel("sheet", Affine::translation({50, -0.2, 50}));
+             b.addModel("sheet", Affine::rotationY(71).then(Affine::translation({46, 0.0, 44})));
+             b.addModel("sheet", Affine::translation({54, 0.48, 46}));
+         }},
     };
     std::vector<LightSpec> lights = {LightSpec::directional("sun", {0.3, -1, 0.2}), LightSpec::directional("steep", {0.9, -1, 0.1}),
                                      LightSpec::point("lamp", {50.1, 1.0, 50.1}, 5.0)};

@@ -1,0 +1,98 @@
+// A bounding-volume hierarchy over boxes, queried with a predicate on boxes: the
+// geometry stage's broad phase (one tree over a window's objects, one per unique mesh in
+// mesh coordinates, shared by its instances and kept across windows).
+//
+// Median splits on the longest axis of the centres, leaves of kLeafSize. The predicate
+// decides whether a subtree may hold an answer; it must be conservative (true whenever a
+// box it was asked about could hold one): the tree only ever skips what it says cannot.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "core/mesh.h"
+#include "core/window.h"
+
+namespace shadowcull::geometry {
+
+class BoxTree {
+public:
+    BoxTree() = default;
+    // `boxes[k]` bounds item k. Items with an empty box are left out.
+    explicit BoxTree(const std::vector<Aabb>& boxes);
+
+    // Calls leaf(k) for every item whose box passes `mayHold` along with every box of
+    // the nodes above it, until leaf returns true (then returns true: stopped early).
+    template <class Pred, class Leaf>
+    bool visit(const Pred& mayHold, const Leaf& leaf) const {
+        return walk<true>(mayHold, leaf);
+    }
+    // As visit(), but `mayHold` is asked about nodes only (not each item's own box).
+    template <class Pred, class Leaf>
+    bool visitNodes(const Pred& mayHold, const Leaf& leaf) const {
+        return walk<false>(mayHold, leaf);
+    }
+    size_t size() const { return items_.size(); }
+
+private:
+    template <bool kTestItems, class Pred, class Leaf>
+    bool walk(const Pred& mayHold, const Leaf& leaf) const {
+        if (nodes_.empty()) return false;
+        uint32_t stack[kMaxDepth];
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const Node& n = nodes_[stack[--top]];
+            if (!mayHold(n.box)) continue;
+            if (n.count > 0) {
+                for (uint32_t i = n.first; i < n.first + n.count; ++i)
+                    if ((!kTestItems || mayHold(items_[i].box)) && leaf(items_[i].index)) return true;
+            } else {
+                stack[top++] = n.first + 1;  // the left child is visited first
+                stack[top++] = n.first;
+            }
+        }
+        return false;
+    }
+    struct Node {
+        Aabb box;
+        uint32_t first = 0;  // leaf: first index into items_; inner: index of the left child
+        uint32_t count = 0;  // leaf: items; inner: 0
+    };
+    struct Item {
+        Aabb box;
+        uint32_t index = 0;
+    };
+    static constexpr uint32_t kLeafSize = 4;
+    // Median splits halve the items, so the depth is about log2(n / kLeafSize) + 1 and the
+    // stack (one pending sibling per level, plus the two children pushed) stays far below.
+    static constexpr int kMaxDepth = 96;
+    std::vector<Item> items_;  // leaf by leaf
+    std::vector<Node> nodes_;
+};
+
+// A tree per mesh over its triangles with three distinct vertices (boxes in mesh
+// coordinates), built on first use and kept while windows hold the mesh. Thread-safe:
+// tasks of one window build different meshes' trees in parallel; a tree is built once.
+class MeshTreeCache {
+public:
+    // The tree of `mesh` (built now if needed). Valid until the next keepOnly().
+    const BoxTree& tree(const Mesh& mesh);
+    // Drops the trees of meshes not in `meshes` (called once per window, before any task).
+    void keepOnly(const std::unordered_set<const Mesh*>& meshes);
+    size_t size() const;
+
+private:
+    struct Entry {
+        std::once_flag once;
+        BoxTree tree;
+    };
+    mutable std::mutex mutex_;
+    std::unordered_map<const Mesh*, std::unique_ptr<Entry>> entries_;
+};
+
+}  // namespace shadowcull::geometry

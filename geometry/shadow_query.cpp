@@ -1,0 +1,390 @@
+#include "geometry/shadow_query.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+#include "core/light_reach.h"
+
+namespace shadowcull::geometry {
+
+namespace {
+
+double norm1(const glm::dvec3& v) { return std::abs(v.x) + std::abs(v.y) + std::abs(v.z); }
+
+// Relative rounding allowance of every double evaluation below (a few ulps, widely).
+constexpr double kRound = 1e-13;
+
+}  // namespace
+
+void ShadowQuery::addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm::dvec3& axis) const {
+    const double k0 = dilation_ > 0 ? dilation_ * (1 + 1e-9) : 0.0;
+    if (pointLight_) {
+        // Seen along `axis`, the cone {L + l (p - L) : l > 0} over the points is a wedge
+        // from L; its bounding planes contain L and `axis` and pass through an extreme point
+        // p_j: normal n = axis x (p_j - L), every point on its non-negative side. (None when
+        // L is inside the points' shadow along the axis.) Every cone point has
+        // n . (x - L) = l n . (p - L) >= 0.
+        glm::dvec3 found[2];
+        int nFound = 0;
+        for (int j = 0; j < pointCount_ && nFound < 2; ++j) {
+            const glm::dvec3 pj = pts_[size_t(j)] - light_;
+            bool again = false;  // p_j on a plane already found (a box's corners pair up along its axes)
+            for (int f = 0; f < nFound; ++f)
+                again |= std::abs(glm::dot(found[f], pj)) <= 1e-12 * glm::length(found[f]) * glm::length(pj);
+            if (again) continue;
+            glm::dvec3 n = glm::cross(axis, pj);
+            const double len = glm::length(n);
+            const double scale = glm::length(axis) * glm::length(pj) + len;
+            if (!(len > 1e-9 * scale)) continue;
+            int sign = 0;
+            for (int i = 0; i < pointCount_ && sign != 2; ++i) {
+                const double v = glm::dot(n, pts_[size_t(i)] - light_);
+                const int si = v > 0 ? 1 : v < 0 ? -1 : 0;
+                if (si != 0) sign = sign == 0 || sign == si ? si : 2;
+            }
+            if (sign == 2) continue;  // points on both sides: not a bounding plane
+            if (sign < 0) n = -n;
+            found[nFound++] = n;
+            add(to, count, HalfSpace{n, light_, k0 * len, 1e-12 * scale, margin_ * len});
+            if (count + 2 > int(to.size())) return;
+        }
+        return;
+    }
+    // n = d x axis is across the light: every point p + s d of the column has n . x = n . p
+    // up to s (n . d), which is rounding only (|n . d| a few ulps of |n||d|; s |d| at most
+    // the window's size, covered by the margin of 1e-9 of its extent).
+    const glm::dvec3 n = glm::cross(direction_, axis);
+    const double len = glm::length(n);
+    if (!(len > 1e-9 * glm::length(direction_) * glm::length(axis))) return;  // axis along the light: no slab
+    const double rel = 1e-12 * (glm::length(direction_) * glm::length(axis) + len);
+    for (const glm::dvec3& m : {n, -n}) {
+        int lo = 0;
+        for (int i = 1; i < pointCount_; ++i)
+            if (glm::dot(m, pts_[size_t(i)]) < glm::dot(m, pts_[size_t(lo)])) lo = i;
+        add(to, count, HalfSpace{m, pts_[size_t(lo)], k0 * len, rel, margin_ * len});
+    }
+}
+
+ShadowQuery::ShadowQuery(const Triangle& t, const LightGeometry& light, double dilation, double margin) {
+    // Moving a half-space outward by the dilation r: k = r |n| (rounded up, as the exact test does).
+    auto grow = [&](const glm::dvec3& n) { return dilation > 0 ? dilation * glm::length(n) * (1 + 1e-9) : 0.0; };
+    const glm::dvec3 e1 = t[1] - t[0], e2 = t[2] - t[0];
+    glm::dvec3 n = glm::cross(e1, e2);
+    const glm::dvec3 toward = light.directional ? light.direction : t[0] - light.position;
+    const double facing = glm::dot(n, toward);
+    const double nScale = glm::length(e1) * glm::length(e2) + glm::length(n);
+    // As FrustumFilter: signs are trusted only far beyond their rounding (the cross product
+    // of rounded differences is within a few ulps of |e1||e2| of the exact one).
+    if (std::abs(facing) > 1e-12 * nScale * glm::length(toward) + 1e-300) {
+        if (facing < 0) n = -n;
+        add(hs_, count_, HalfSpace{n, t[0], grow(n), 1e-12 * nScale, margin * glm::length(n)});  // beyond the caster's plane
+        for (int e = 0; e < 3; ++e) {
+            SidePlane side;
+            if (doubleSidePlane(t, e, light, side))  // uncertain: left out
+                add(hs_, count_, HalfSpace{side.n, side.o, grow(side.n), 1e-12 * side.scale, margin * glm::length(side.n)});
+        }
+    }
+    if (!light.directional) {
+        // The frustum {L + l (p - L) : l > 1} lies beyond the caster's nearest point.
+        pointLight_ = true;
+        light_ = light.position;
+        Aabb box;
+        for (const glm::dvec3& p : t) box.extend(p);
+        near_ = distanceToBox(light.position, box) * (1 - 1e-9) - margin - dilation;
+        frustumCount_ = count_;
+        pts_ = {t[0], t[1], t[2]};
+        pointCount_ = 3;
+        dilation_ = dilation;
+        margin_ = margin;
+        for (const glm::dvec3& e : {glm::dvec3(1, 0, 0), glm::dvec3(0, 1, 0), glm::dvec3(0, 0, 1)}) addSlabs(hs_, count_, e);
+        return;
+    }
+    // Depth: every point p + s d (s > 0) lies deeper than p.
+    const glm::dvec3 w = glm::normalize(light.direction);
+    int shallowest = 0;
+    for (int i = 1; i < 3; ++i)
+        if (glm::dot(w, t[size_t(i)]) < glm::dot(w, t[size_t(shallowest)])) shallowest = i;
+    add(hs_, count_, HalfSpace{w, t[size_t(shallowest)], dilation > 0 ? dilation * (1 + 1e-9) : 0.0, 1e-12, margin});
+    frustumCount_ = count_;
+    directional_ = true;
+    pts_ = {t[0], t[1], t[2]};
+    pointCount_ = 3;
+    direction_ = light.direction;
+    dilation_ = dilation;
+    margin_ = margin;
+    for (const glm::dvec3& e : {glm::dvec3(1, 0, 0), glm::dvec3(0, 1, 0), glm::dvec3(0, 0, 1)}) addSlabs(hs_, count_, e);
+}
+
+ShadowQuery ShadowQuery::ofCluster(const Aabb& b, const RowTransform& m, const LightGeometry& light, double dilation, double margin) {
+    ShadowQuery q;
+    q.directional_ = light.directional;
+    q.pointLight_ = !light.directional;
+    q.direction_ = light.direction;
+    q.light_ = light.position;
+    q.dilation_ = dilation;
+    q.margin_ = margin;
+    q.pointCount_ = 8;
+    // Corners mapped to the window. The caster's own vertices are the rounded maps of mesh
+    // points inside the box: within a few ulps of the exact map, far inside the margin
+    // (1e-9 of the window's extent) that every half-space below allows.
+    Aabb corners;
+    for (int k = 0; k < 8; ++k) {
+        q.pts_[size_t(k)] = m.apply({k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z});
+        corners.extend(q.pts_[size_t(k)]);
+    }
+    const double k0 = dilation > 0 ? dilation * (1 + 1e-9) : 0.0;
+    auto extreme = [&](const glm::dvec3& n, bool lowest) {
+        int e = 0;
+        for (int i = 1; i < 8; ++i) {
+            const double a = glm::dot(n, q.pts_[size_t(i)]), c = glm::dot(n, q.pts_[size_t(e)]);
+            if (lowest ? a < c : a > c) e = i;
+        }
+        return q.pts_[size_t(e)];
+    };
+    if (light.directional) {
+        // Depth: not nearer the light than the box's nearest corner.
+        const glm::dvec3 w = glm::normalize(light.direction);
+        add(q.hs_, q.count_, HalfSpace{w, extreme(w, true), k0, 1e-12, margin});
+    } else {
+        // Every point L + l (x - L), l > 1, is at least as far from L as the box is.
+        q.near_ = distanceToBox(light.position, corners) * (1 - 1e-9) - margin - dilation;
+    }
+    // Faces the light enters by. Directional: a face normal f (outward) with f . d < 0;
+    // the column x + s d (s > 0) only moves further inside: f . (x + s d) <= max of f . x.
+    // Point: a face whose plane has L strictly outside (f . L > max of f . x); for l >= 1,
+    // f . (L + l (x - L)) = f . L + l (f . x - f . L) <= f . x.
+    for (int i = 0; i < 3; ++i) {
+        const glm::dvec3 a = m.rows[size_t((i + 1) % 3)], c = m.rows[size_t((i + 2) % 3)];
+        glm::dvec3 f = glm::cross(a, c);  // normal of the faces spanned by the other two axes
+        const double len = glm::length(f);
+        const double fScale = glm::length(a) * glm::length(c) + len;
+        if (light.directional) {
+            const double along = glm::dot(f, light.direction);
+            if (!(std::abs(along) > 1e-9 * fScale * glm::length(light.direction))) continue;  // edge-on: left out
+            if (along > 0) f = -f;  // now f . d < 0
+        } else {
+            // The side of the box the light is on, if it is outside the slab of these faces.
+            const double atL = glm::dot(f, light.position);
+            const double hi = glm::dot(f, extreme(f, false)), lo = glm::dot(f, extreme(f, true));
+            const double slack = 1e-9 * fScale * (norm1(light.position) + norm1(corners.max) + norm1(corners.min) + 1.0);
+            if (atL > hi + slack) {
+            } else if (atL < lo - slack) {
+                f = -f;
+            } else {
+                continue;  // L between the two faces: neither bounds the cone
+            }
+        }
+        add(q.hs_, q.count_,
+            HalfSpace{-f, extreme(f, false), dilation > 0 ? dilation * len * (1 + 1e-9) : 0.0, 1e-12 * fScale, margin * len});
+    }
+    // Slabs (or wedges) of the box's own axes.
+    for (int i = 0; i < 3; ++i) q.addSlabs(q.hs_, q.count_, m.rows[size_t(i)]);
+    q.frustumCount_ = q.count_;
+    for (const glm::dvec3& e : {glm::dvec3(1, 0, 0), glm::dvec3(0, 1, 0), glm::dvec3(0, 0, 1)}) q.addSlabs(q.hs_, q.count_, e);
+    return q;
+}
+
+Aabb shadowBox(const glm::dvec3* pts, int count, const Light& L, const Aabb& limits, double margin) {
+    Aabb box;
+    for (int i = 0; i < count; ++i) box.extend(pts[i]);
+    if (L.type != LightType::Directional) {
+        // Within range: beyond the points by at most range / (their distance).
+        Aabb sphere;
+        sphere.min = L.position - glm::dvec3(L.range);
+        sphere.max = L.position + glm::dvec3(L.range);
+        const double dMin = distanceToBox(L.position, box) * (1 - 1e-9);
+        if (dMin > 1e-9) {
+            const double lMax = L.range / dMin * (1 + 1e-9) + 1e-9;
+            for (int i = 0; i < count; ++i) box.extend(L.position + lMax * (pts[i] - L.position));
+            box.min = glm::max(box.min, sphere.min);
+            box.max = glm::min(box.max, sphere.max);
+        } else {
+            box = sphere;
+        }
+    } else {
+        // Ray parameter where the last of the points' rays leaves the window box.
+        const glm::dvec3& d = L.direction;
+        double sMax = 0;
+        for (int i = 0; i < count; ++i) {
+            double exit = std::numeric_limits<double>::infinity();
+            for (int a = 0; a < 3; ++a) {
+                if (d[a] > 0) exit = std::min(exit, (limits.max[a] - pts[i][a]) / d[a]);
+                else if (d[a] < 0) exit = std::min(exit, (limits.min[a] - pts[i][a]) / d[a]);
+            }
+            sMax = std::max(sMax, exit);
+        }
+        sMax = sMax * (1 + 1e-9) + margin;
+        for (int i = 0; i < count; ++i) box.extend(pts[i] + sMax * d);
+    }
+    box.min -= glm::dvec3(margin + L.filterRadius);
+    box.max += glm::dvec3(margin + L.filterRadius);
+    return box;
+}
+
+Aabb ShadowQuery::columnBox(const Light& L, const Aabb& limits) const { return shadowBox(pts_.data(), pointCount_, L, limits, margin_); }
+
+bool ShadowQuery::clusterMisses(const Triangle& r, double beta) const {
+    if (misses(r)) return true;
+    if (dilation_ > 0) return false;  // the receiver may be up to r off the rays: no more
+    const glm::dvec3 e1 = r[1] - r[0], e2 = r[2] - r[0];
+    const glm::dvec3 n = glm::cross(e1, e2);
+    const double nScale = glm::length(e1) * glm::length(e2) + glm::length(n);
+    if (pointLight_) {
+        // FrustumFilter::receiverPlaneInFront for a point light (bias 0) over the corners:
+        // along the ray through p the plane is at l(p) - 1 = n.(r0 - p) / n.(p - L); both
+        // affine in p, so certain and opposite signs at every corner (the denominators of
+        // one sign) put the plane in front of the light's rays over the whole box.
+        int denSign = 0;
+        for (int i = 0; i < pointCount_; ++i) {
+            const glm::dvec3 toward = pts_[size_t(i)] - light_;
+            const double den = glm::dot(n, toward);
+            if (!(std::abs(den) > 1e-12 * nScale * norm1(toward) + margin_ * glm::length(n) + 1e-300)) return false;
+            const int ds = den > 0 ? 1 : -1;
+            if (denSign != 0 && ds != denSign) return false;
+            denSign = ds;
+            const glm::dvec3 back = r[0] - pts_[size_t(i)];
+            const double num = glm::dot(n, back);
+            if (!(std::abs(num) > 1e-12 * nScale * norm1(back) + margin_ * glm::length(n) + 1e-300) || (num > 0) == (den > 0))
+                return false;
+        }
+        return true;
+    }
+    // Depth: a receiver point behind a caster point p by more than beta is deeper than p by
+    // more than beta |d| along w = d / |d|; none when the receiver's deepest vertex is not
+    // deeper than the cluster's nearest corner by that.
+    const glm::dvec3 w = glm::normalize(direction_);
+    const double dLen = glm::length(direction_);
+    double deepest = -std::numeric_limits<double>::infinity(), nearest = std::numeric_limits<double>::infinity(), size = 0;
+    for (const glm::dvec3& x : r) {
+        deepest = std::max(deepest, glm::dot(w, x));
+        size = std::max(size, norm1(x));
+    }
+    for (int i = 0; i < pointCount_; ++i) {
+        nearest = std::min(nearest, glm::dot(w, pts_[size_t(i)]));
+        size = std::max(size, norm1(pts_[size_t(i)]));
+    }
+    if (deepest < nearest + beta * dLen * (1 - 1e-9) - margin_ - 1e-12 * size) return true;
+    // The receiver's plane in front of every corner (FrustumFilter::receiverPlaneInFront):
+    // along the ray through p it lies at s(p) = n.(r0 - p) / n.d; affine in p, so when it is
+    // below beta at every corner with certainty it is below beta over the whole box.
+    const double den = glm::dot(n, direction_);
+    if (!(std::abs(den) > 1e-12 * nScale * norm1(direction_) + 1e-300)) return false;
+    for (int i = 0; i < pointCount_; ++i) {
+        const glm::dvec3 back = r[0] - pts_[size_t(i)];
+        const double num = glm::dot(n, back) - beta * den;
+        const double bound = 1e-12 * nScale * (norm1(back) + beta * glm::length(direction_)) + margin_ * glm::length(n) + 1e-300;
+        if (!(std::abs(num) > bound) || (num > 0) == (den > 0)) return false;
+    }
+    return true;
+}
+
+// The farthest point of the box from the light is nearer than every point of the frustum.
+bool ShadowQuery::tooNear(const Aabb& b) const {
+    if (!pointLight_ || !(near_ > 0)) return false;
+    const glm::dvec3 far = glm::max(glm::abs(b.min - light_), glm::abs(b.max - light_));
+    return glm::length(far) * (1 + 1e-9) < near_;
+}
+
+bool ShadowQuery::misses(const Triangle& r) const {
+    for (int i = 0; i < count_; ++i) {
+        const HalfSpace& h = hs_[size_t(i)];
+        bool out = true;
+        for (const glm::dvec3& x : r) {
+            const glm::dvec3 d = x - h.o;
+            const double v = glm::dot(h.n, d) + h.k;
+            const double bound = h.rel * norm1(d) + h.abs + kRound * (norm1(h.n) * norm1(d) + std::abs(h.k)) + 1e-300;
+            if (!(v < -bound)) {
+                out = false;
+                break;
+            }
+        }
+        if (out) return true;
+    }
+    if (pointLight_) {
+        Aabb b;
+        for (const glm::dvec3& x : r) b.extend(x);
+        return tooNear(b);
+    }
+    return false;
+}
+
+bool ShadowQuery::mayHold(const Aabb& b) const {
+    if (tooNear(b)) return false;
+    for (int i = 0; i < count_; ++i) {
+        const HalfSpace& h = hs_[size_t(i)];
+        double best = h.k, spread = 0, terms = std::abs(h.k);
+        for (int a = 0; a < 3; ++a) {
+            const double lo = b.min[a] - h.o[a], hi = b.max[a] - h.o[a];
+            best += std::max(h.n[a] * lo, h.n[a] * hi);
+            const double far = std::max(std::abs(lo), std::abs(hi));
+            spread += far;
+            terms += std::abs(h.n[a]) * far;
+        }
+        if (best < -(h.rel * spread + h.abs + kRound * terms) - 1e-300) return false;
+    }
+    return true;
+}
+
+ShadowQuery::InMesh ShadowQuery::inMesh(const RowTransform& m) const {
+    // x = y.x r0 + y.y r1 + y.z r2 + r3, so n . (x - o) + k = n' . y + c with
+    // n'_i = n . r_i and c = n . (r3 - o) + k. The bound of a window-local point x,
+    // rel |x - o|_1 + abs, is at most rel (sum_i |y_i| |r_i|_1 + |r3 - o|_1) + abs; the
+    // rounding of n', c and of the receivers' own mapped vertices (each within a few ulps
+    // of sum_i |y_i| |r_i| + |r3|) adds kRound |n|_1 times the same sizes.
+    std::array<HalfSpace, 16> hs;
+    int count = 0;
+    for (int i = 0; i < frustumCount_; ++i) add(hs, count, hs_[size_t(i)]);
+    // The slabs of the instance's own axes (the mesh axes mapped to the window: r_i).
+    if (directional_ || pointLight_)
+        for (int i = 0; i < 3; ++i) addSlabs(hs, count, m.rows[size_t(i)]);
+    InMesh q;
+    q.count_ = count;
+    if (pointLight_ && near_ > 0) {
+        q.query_ = this;
+        q.map_ = m;
+    }
+    const double r1[3] = {norm1(m.rows[0]), norm1(m.rows[1]), norm1(m.rows[2])};
+    for (int i = 0; i < count; ++i) {
+        const HalfSpace& h = hs[size_t(i)];
+        InMesh::Plane& p = q.planes_[size_t(i)];
+        p.n = {glm::dot(h.n, m.rows[0]), glm::dot(h.n, m.rows[1]), glm::dot(h.n, m.rows[2])};
+        const glm::dvec3 toOrigin = m.rows[3] - h.o;
+        p.c = glm::dot(h.n, toOrigin) + h.k;
+        const double nAbs = norm1(h.n);
+        for (int a = 0; a < 3; ++a) p.yWeight[a] = (h.rel + kRound * nAbs) * r1[a];
+        p.err = h.rel * norm1(toOrigin) + h.abs + kRound * (nAbs * (norm1(m.rows[3]) + norm1(h.o)) + std::abs(h.k));
+    }
+    return q;
+}
+
+bool ShadowQuery::InMesh::mayHold(const Aabb& b) const {
+    if (query_) {
+        // The window-local box of the mapped box, grown by the rounding of the mapping.
+        const glm::dvec3 c = 0.5 * (b.min + b.max), h = 0.5 * (b.max - b.min);
+        const glm::dvec3 centre = map_.apply(c);
+        glm::dvec3 half = h.x * glm::abs(map_.rows[0]) + h.y * glm::abs(map_.rows[1]) + h.z * glm::abs(map_.rows[2]);
+        const glm::dvec3 size = glm::abs(c.x * map_.rows[0]) + glm::abs(c.y * map_.rows[1]) + glm::abs(c.z * map_.rows[2]) +
+                                glm::abs(map_.rows[3]) + half;
+        half += kRound * size;
+        Aabb ls;
+        ls.min = centre - half;
+        ls.max = centre + half;
+        if (query_->tooNear(ls)) return false;
+    }
+    for (int i = 0; i < count_; ++i) {
+        const Plane& p = planes_[size_t(i)];
+        double best = p.c, bound = p.err + kRound * std::abs(p.c);
+        for (int a = 0; a < 3; ++a) {
+            best += std::max(p.n[a] * b.min[a], p.n[a] * b.max[a]);
+            const double far = std::max(std::abs(b.min[a]), std::abs(b.max[a]));
+            bound += (p.yWeight[a] + kRound * std::abs(p.n[a])) * far;
+        }
+        if (best < -bound - 1e-300) return false;
+    }
+    return true;
+}
+
+}  // namespace shadowcull::geometry

@@ -1,0 +1,192 @@
+// geometry/'s broad phase: the box tree returns every item a predicate lets through, the
+// mesh-tree cache follows the window, and the shadow queries (one caster triangle, or a
+// cluster of a mesh tree) never skip a receiver the exact test reaches: in window-local
+// boxes, in an instance's mesh coordinates (turned, scaled, mirrored, far from the
+// origin), and for the cluster filters, for directional and point lights, with and
+// without bias and dilation.
+
+#include <random>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include <gtest/gtest.h>
+
+#include "geometry/box_tree.h"
+#include "geometry/exact_frustum.h"
+#include "geometry/shadow_query.h"
+
+using namespace shadowcull;
+using namespace shadowcull::geometry;
+
+namespace {
+
+Aabb boxOf(const Triangle& t) {
+    Aabb b;
+    for (const glm::dvec3& p : t) b.extend(p);
+    return b;
+}
+
+bool overlap(const Aabb& a, const Aabb& b) {
+    for (int i = 0; i < 3; ++i)
+        if (a.max[i] < b.min[i] || a.min[i] > b.max[i]) return false;
+    return true;
+}
+
+// A random placement: a turn about a random axis, a scale of 0.3-3 per axis (mirrored
+// one time in four), and a move of up to `reach` metres.
+RowTransform randomPlacement(std::mt19937_64& rng, double reach) {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    glm::dquat q(u(rng), u(rng), u(rng), u(rng));
+    q = glm::normalize(q);
+    const glm::dmat3 r = glm::mat3_cast(q);
+    glm::dvec3 s(std::exp(u(rng) * 1.2), std::exp(u(rng) * 1.2), std::exp(u(rng) * 1.2));
+    if (rng() % 4 == 0) s.x = -s.x;
+    RowTransform m;
+    // Row i is the image of mesh axis i: the scaled axis turned.
+    for (int i = 0; i < 3; ++i) m.rows[size_t(i)] = r * (s[i] * glm::dvec3(i == 0, i == 1, i == 2));
+    m.rows[3] = glm::dvec3(u(rng), u(rng), u(rng)) * reach;
+    return m;
+}
+
+// Mesh coordinates of a window-local point (inverse of the placement, in double).
+glm::dvec3 toMesh(const RowTransform& m, const glm::dvec3& x) {
+    const glm::dmat3 a(m.rows[0], m.rows[1], m.rows[2]);  // columns: x = a y + r3
+    return glm::inverse(a) * (x - m.rows[3]);
+}
+
+}  // namespace
+
+TEST(BoxTree, VisitsExactlyTheOverlappingItems) {
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> u(0.0, 100.0), s(0.0, 3.0);
+    for (size_t n : {size_t(0), size_t(1), size_t(7), size_t(1000), size_t(40000)}) {
+        std::vector<Aabb> boxes(n);
+        for (Aabb& b : boxes) {
+            const glm::dvec3 c(u(rng), u(rng), u(rng));
+            b.min = c - glm::dvec3(s(rng), s(rng), s(rng));
+            b.max = c + glm::dvec3(s(rng), s(rng), s(rng));
+        }
+        if (n > 3) boxes[3] = Aabb{};  // an empty box is left out
+        const BoxTree tree(boxes);
+        EXPECT_EQ(tree.size(), n > 3 ? n - 1 : n);
+        for (int q = 0; q < 20; ++q) {
+            Aabb query;
+            const glm::dvec3 c(u(rng), u(rng), u(rng));
+            query.min = c - glm::dvec3(5.0);
+            query.max = c + glm::dvec3(5.0);
+            std::vector<int> seen(n, 0);
+            tree.visit([&](const Aabb& b) { return overlap(b, query); },
+                       [&](uint32_t k) {
+                           ++seen[k];
+                           return false;
+                       });
+            for (size_t k = 0; k < n; ++k)
+                ASSERT_EQ(seen[k], !boxes[k].empty() && overlap(boxes[k], query) ? 1 : 0) << "n " << n << " item " << k;
+        }
+    }
+}
+
+TEST(MeshTreeCache, BuildsOnceAndFollowsTheWindow) {
+    Mesh a, b;
+    a.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+    a.triangles = {{0, 1, 2}, {1, 3, 2}, {0, 0, 1}};  // the last has a repeated vertex: never a receiver
+    a.triangleGroup = {0, 0, 0};
+    b = a;
+    MeshTreeCache cache;
+    const BoxTree& ta = cache.tree(a);
+    EXPECT_EQ(ta.size(), 2u);
+    EXPECT_EQ(&cache.tree(a), &ta);  // built once
+    cache.tree(b);
+    EXPECT_EQ(cache.size(), 2u);
+    cache.keepOnly({&b});
+    EXPECT_EQ(cache.size(), 1u);
+    cache.keepOnly({});
+    EXPECT_EQ(cache.size(), 0u);
+}
+
+// Every receiver the exact frustum reaches passes every broad-phase test of its caster
+// triangle and of every cluster box holding that triangle.
+TEST(ShadowQuery, NeverSkipsWhatTheExactTestReaches) {
+    std::mt19937_64 rng(29);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    size_t reached = 0, pairs = 0, skippedInMesh = 0, skippedCluster = 0;
+    for (int trial = 0; trial < 300; ++trial) {
+        LightGeometry light;
+        light.directional = trial % 3 != 0;
+        light.direction = trial % 7 == 0 ? glm::dvec3(0, -1, 0) : glm::normalize(glm::dvec3(u(rng) * 0.8, -1.0, u(rng) * 0.8));
+        const double dilation = trial % 5 == 0 ? 0.01 : 0.0;
+        const double reach = trial % 2 == 0 ? 1.0 : 150.0;  // near the origin, or far in the window
+        const double margin = 1e-9 * (reach + 10.0 + 1.0) + 1e-9;
+        const RowTransform casterPlace = randomPlacement(rng, reach), receiverPlace = randomPlacement(rng, reach);
+        // A cluster box in the caster's mesh coordinates, and caster triangles inside it.
+        const glm::dvec3 c(u(rng), u(rng), u(rng));
+        const glm::dvec3 h = glm::dvec3(0.05) + 0.3 * glm::abs(glm::dvec3(u(rng), u(rng), u(rng)));
+        Aabb cluster;
+        cluster.min = c - h;
+        cluster.max = c + h;
+        auto inCluster = [&] { return c + h * glm::dvec3(u(rng), u(rng), u(rng)); };
+        const glm::dvec3 centre = casterPlace.apply(c);
+        light.position = centre + glm::dvec3(u(rng), 1.5 + std::abs(u(rng)), u(rng));
+        const glm::dvec3 along = light.directional ? light.direction : glm::normalize(centre - light.position);
+        const ShadowQuery cq = ShadowQuery::ofCluster(cluster, casterPlace, light, dilation, margin);
+        const ShadowQuery::InMesh cqMesh = cq.inMesh(receiverPlace);
+        for (int ct = 0; ct < 4; ++ct) {
+            const Triangle t = {casterPlace.apply(inCluster()), casterPlace.apply(inCluster()), casterPlace.apply(inCluster())};
+            if (hasRepeatedVertex(t[0], t[1], t[2])) continue;
+            // With a filter radius the queries hold every point within that radius of the
+            // frustum (the spec's reach), not the exact test's looser dilated region: test
+            // them on what reaches the frustum itself, and on receivers moved off it below.
+            const ExactFrustum exact(t, light, 0.0);
+            if (exact.degenerate()) continue;
+            const ShadowQuery q(t, light, dilation, margin);
+            const ShadowQuery::InMesh qMesh = q.inMesh(receiverPlace);
+            for (int k = 0; k < 40; ++k) {
+                // A receiver around and behind the caster, in the receiver instance's mesh
+                // coordinates; its window-local triangle is what the stage computes.
+                const glm::dvec3 p = t[size_t(k % 3)] + along * (0.05 + 2.0 * std::abs(u(rng))) +
+                                     glm::dvec3(u(rng), u(rng), u(rng)) * (k % 4 == 0 ? 0.02 : 0.4);
+                const double size = k % 5 == 0 ? 2.0 : 0.2;
+                const Triangle y = {toMesh(receiverPlace, p), toMesh(receiverPlace, p + glm::dvec3(u(rng), u(rng), u(rng)) * size),
+                                    toMesh(receiverPlace, p + glm::dvec3(u(rng), u(rng), u(rng)) * size)};
+                Triangle r = {receiverPlace.apply(y[0]), receiverPlace.apply(y[1]), receiverPlace.apply(y[2])};
+                if (hasRepeatedVertex(r[0], r[1], r[2])) continue;
+                skippedInMesh += !qMesh.mayHold(boxOf(y));
+                skippedCluster += !cqMesh.mayHold(boxOf(y));
+                for (double beta : {0.0, 0.02}) {
+                    ++pairs;
+                    if (!exact.reaches(r, beta)) continue;
+                    ++reached;
+                    if (dilation > 0) {
+                        // Moved by up to the radius in any direction: still within reach.
+                        const glm::dvec3 shift = glm::normalize(glm::dvec3(u(rng), u(rng), u(rng))) * dilation * 0.999;
+                        const Triangle moved = {r[0] + shift, r[1] + shift, r[2] + shift};
+                        const Triangle movedY = {toMesh(receiverPlace, moved[0]), toMesh(receiverPlace, moved[1]),
+                                                 toMesh(receiverPlace, moved[2])};
+                        ASSERT_FALSE(q.misses(moved)) << "trial " << trial;
+                        ASSERT_TRUE(q.mayHold(boxOf(moved))) << "trial " << trial;
+                        ASSERT_TRUE(cq.mayHold(boxOf(moved))) << "trial " << trial;
+                        // The mesh box of the moved receiver, grown by the inverse's rounding.
+                        Aabb yb = boxOf(movedY);
+                        yb.min -= glm::dvec3(1e-9);
+                        yb.max += glm::dvec3(1e-9);
+                        ASSERT_TRUE(qMesh.mayHold(yb)) << "trial " << trial;
+                        ASSERT_TRUE(cqMesh.mayHold(yb)) << "trial " << trial;
+                    }
+                    ASSERT_FALSE(q.misses(r)) << "trial " << trial;
+                    ASSERT_TRUE(q.mayHold(boxOf(r))) << "trial " << trial;
+                    ASSERT_TRUE(qMesh.mayHold(boxOf(y))) << "trial " << trial;
+                    ASSERT_TRUE(cq.mayHold(boxOf(r))) << "trial " << trial;
+                    ASSERT_TRUE(cqMesh.mayHold(boxOf(y))) << "trial " << trial;
+                    ASSERT_FALSE(cq.clusterMisses(r, beta)) << "trial " << trial << " beta " << beta;
+                }
+            }
+        }
+    }
+    // Meaningful only if receivers are both reached and skipped often.
+    EXPECT_GT(reached, pairs / 20) << pairs << " pairs";
+    EXPECT_GT(skippedInMesh, pairs / 10) << pairs << " pairs";
+    EXPECT_GT(skippedCluster, pairs / 20) << pairs << " pairs";
+    std::printf("%zu pairs, %zu reached, %zu receivers skipped by a triangle's query, %zu by a cluster's\n", pairs, reached,
+                skippedInMesh, skippedCluster);
+}
