@@ -31,7 +31,8 @@ public:
     bool visit(const Pred& mayHold, const Leaf& leaf) const {
         return walk<true>(mayHold, leaf);
     }
-    // As visit(), but `mayHold` is asked about nodes only (not each item's own box).
+    // As visit(), but `mayHold(box, items)` is asked about nodes only (not each item's own
+    // box), with the number of items under the node.
     template <class Pred, class Leaf>
     bool visitNodes(const Pred& mayHold, const Leaf& leaf) const {
         return walk<false>(mayHold, leaf);
@@ -47,10 +48,18 @@ private:
         stack[top++] = 0;
         while (top > 0) {
             const Node& n = nodes_[stack[--top]];
-            if (!mayHold(n.box)) continue;
+            if constexpr (kTestItems) {
+                if (!mayHold(n.box)) continue;
+            } else {
+                if (!mayHold(n.box, n.items)) continue;
+            }
             if (n.count > 0) {
                 for (uint32_t i = n.first; i < n.first + n.count; ++i)
-                    if ((!kTestItems || mayHold(items_[i].box)) && leaf(items_[i].index)) return true;
+                    if constexpr (kTestItems) {
+                        if (mayHold(items_[i].box) && leaf(items_[i].index)) return true;
+                    } else {
+                        if (leaf(items_[i].index)) return true;
+                    }
             } else {
                 stack[top++] = n.first + 1;  // the left child is visited first
                 stack[top++] = n.first;
@@ -62,6 +71,7 @@ private:
         Aabb box;
         uint32_t first = 0;  // leaf: first index into items_; inner: index of the left child
         uint32_t count = 0;  // leaf: items; inner: 0
+        uint32_t items = 0;  // items under the node
     };
     struct Item {
         Aabb box;

@@ -29,6 +29,10 @@ namespace shadowcull::geometry {
 
 namespace {
 
+// Smallest cluster of caster triangles tested as a whole (smaller ones go triangle by
+// triangle: a cluster query costs about as much as a few triangles' queries).
+constexpr uint32_t kClusterAtLeast = 8;
+
 struct Receiver {
     Triangle tri;  // window-local
     Aabb box;
@@ -290,7 +294,9 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     // mesh costs a few cluster queries instead of one query per triangle.
                     const Mesh& cm = *wo.mesh;
                     trees_.tree(cm).visitNodes(
-                        [&](const Aabb& msBox) {
+                        [&](const Aabb& msBox, uint32_t items) {
+                            // A few triangles cost about what one cluster query does: test them.
+                            if (items <= kClusterAtLeast) return true;
                             const ShadowQuery cq = ShadowQuery::ofCluster(msBox, wo.lsTransform, lg, L.filterRadius, margin);
                             return forReceivers(cq, local ? limits : cq.columnBox(L, limits), [&](uint32_t k, uint32_t tri) {
                                 std::optional<Receiver> made;

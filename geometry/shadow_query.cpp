@@ -20,6 +20,7 @@ constexpr double kRound = 1e-13;
 }  // namespace
 
 void ShadowQuery::addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm::dvec3& axis) const {
+    if (&to == &hs_ && recordAxes_ && axisCount_ < int(axes_.size())) axes_[size_t(axisCount_++)] = axis;
     const double k0 = dilation_ > 0 ? dilation_ * (1 + 1e-9) : 0.0;
     if (pointLight_) {
         // Seen along `axis`, the cone {L + l (p - L) : l > 0} over the points is a wedge
@@ -181,7 +182,9 @@ ShadowQuery ShadowQuery::ofCluster(const Aabb& b, const RowTransform& m, const L
             HalfSpace{-f, extreme(f, false), dilation > 0 ? dilation * len * (1 + 1e-9) : 0.0, 1e-12 * fScale, margin * len});
     }
     // Slabs (or wedges) of the box's own axes.
+    q.recordAxes_ = true;
     for (int i = 0; i < 3; ++i) q.addSlabs(q.hs_, q.count_, m.rows[size_t(i)]);
+    q.recordAxes_ = false;
     q.frustumCount_ = q.count_;
     for (const glm::dvec3& e : {glm::dvec3(1, 0, 0), glm::dvec3(0, 1, 0), glm::dvec3(0, 0, 1)}) q.addSlabs(q.hs_, q.count_, e);
     return q;
@@ -338,8 +341,14 @@ ShadowQuery::InMesh ShadowQuery::inMesh(const RowTransform& m) const {
     int count = 0;
     for (int i = 0; i < frustumCount_; ++i) add(hs, count, hs_[size_t(i)]);
     // The slabs of the instance's own axes (the mesh axes mapped to the window: r_i).
+    // (An axis the query already has, the same instance's or an unturned one's, adds nothing.)
     if (directional_ || pointLight_)
-        for (int i = 0; i < 3; ++i) addSlabs(hs, count, m.rows[size_t(i)]);
+        for (int i = 0; i < 3; ++i) {
+            const glm::dvec3& axis = m.rows[size_t(i)];
+            bool known = false;
+            for (int j = 0; j < axisCount_ && !known; ++j) known = glm::length(glm::cross(axes_[size_t(j)], axis)) == 0.0;
+            if (!known) addSlabs(hs, count, axis);
+        }
     InMesh q;
     q.count_ = count;
     if (pointLight_ && near_ > 0) {
@@ -354,13 +363,23 @@ ShadowQuery::InMesh ShadowQuery::inMesh(const RowTransform& m) const {
         const glm::dvec3 toOrigin = m.rows[3] - h.o;
         p.c = glm::dot(h.n, toOrigin) + h.k;
         const double nAbs = norm1(h.n);
-        for (int a = 0; a < 3; ++a) p.yWeight[a] = (h.rel + kRound * nAbs) * r1[a];
-        p.err = h.rel * norm1(toOrigin) + h.abs + kRound * (nAbs * (norm1(m.rows[3]) + norm1(h.o)) + std::abs(h.k));
+        // Also the rounding of evaluating n' . y + c itself (kRound of its terms' sizes).
+        for (int a = 0; a < 3; ++a) p.yWeight[a] = (h.rel + kRound * nAbs) * r1[a] + kRound * std::abs(p.n[a]);
+        p.err = h.rel * norm1(toOrigin) + h.abs + kRound * (nAbs * (norm1(m.rows[3]) + norm1(h.o)) + std::abs(h.k) + std::abs(p.c));
     }
     return q;
 }
 
 bool ShadowQuery::InMesh::mayHold(const Aabb& b) const {
+    const glm::dvec3 far = glm::max(glm::abs(b.min), glm::abs(b.max));
+    for (int i = 0; i < count_; ++i) {
+        const Plane& p = planes_[size_t(i)];
+        // The box's corner farthest inside, against the bound (inMesh folded the rounding
+        // of n' and c into yWeight and err).
+        const double best = p.c + std::max(p.n.x * b.min.x, p.n.x * b.max.x) + std::max(p.n.y * b.min.y, p.n.y * b.max.y) +
+                            std::max(p.n.z * b.min.z, p.n.z * b.max.z);
+        if (best < -(p.err + glm::dot(p.yWeight, far)) - 1e-300) return false;
+    }
     if (query_) {
         // The window-local box of the mapped box, grown by the rounding of the mapping.
         const glm::dvec3 c = 0.5 * (b.min + b.max), h = 0.5 * (b.max - b.min);
@@ -373,16 +392,6 @@ bool ShadowQuery::InMesh::mayHold(const Aabb& b) const {
         ls.min = centre - half;
         ls.max = centre + half;
         if (query_->tooNear(ls)) return false;
-    }
-    for (int i = 0; i < count_; ++i) {
-        const Plane& p = planes_[size_t(i)];
-        double best = p.c, bound = p.err + kRound * std::abs(p.c);
-        for (int a = 0; a < 3; ++a) {
-            best += std::max(p.n[a] * b.min[a], p.n[a] * b.max[a]);
-            const double far = std::max(std::abs(b.min[a]), std::abs(b.max[a]));
-            bound += (p.yWeight[a] + kRound * std::abs(p.n[a])) * far;
-        }
-        if (best < -bound - 1e-300) return false;
     }
     return true;
 }
