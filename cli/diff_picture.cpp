@@ -223,7 +223,7 @@ std::string groupPicture(const GroupChange& g, const Comparison& c, const Bake& 
          "</g>";
     caption = "Side view: " + hText + " to the right (across the light), y up.";
     if (casters.empty()) caption += " The group's box is not recorded.";
-    if (rays.empty()) caption += " Neither side has a witness ray for this group (proofs and undecided bits have none).";
+    if (rays.empty()) caption += " There is no witness ray on either side (proofs and undecided bits have none).";
     return s + "</svg>";
 }
 

@@ -84,11 +84,22 @@ public:
                 return t;
             }
         }
-        // Nowhere free (a very crowded plot): the key still lists the point; the label goes
-        // where it at least stays inside the plot.
-        Text t{std::clamp(mx + 8, area_.x0, area_.x1 - w), std::clamp(my, area_.y0 + h, area_.y1), size, text, "start", true};
-        taken_.push_back(t.box());
-        return t;
+        // Crowded: the nearest free place on widening rings around the marker, with a
+        // leader line back to it.
+        for (double d = 50; d < 2000; d += 12)
+            for (int k = 0; k < 32; ++k) {
+                const double a = k * 3.14159265358979 / 16;
+                Text t{mx + d * std::cos(a) - w / 2, my + d * std::sin(a) + h / 2 - kDescent * size, size, text, "start", true};
+                const Box b = t.box();
+                if (!b.inside(area_)) continue;
+                if (std::any_of(taken_.begin(), taken_.end(), [&](const Box& o) { return o.overlaps(b); })) continue;
+                taken_.push_back(b);
+                leader = true;
+                return t;
+            }
+        // No room at all (more points than the plot holds labels): the key table still
+        // lists the point; its label is left out rather than drawn over another.
+        return Text{mx, my, 0, "", "start", true};
     }
 
 private:
@@ -215,6 +226,7 @@ std::string sweepSvg(const std::vector<SweepRow>& rows) {
             if (!show) continue;
             bool leader = false;
             Text t = placer->place(x, y, std::to_string(i + 1), fs, leader);
+            if (t.text.empty()) continue;
             if (leader) {
                 const Box b = t.box();
                 s << "<line x1=\"" << fmt(x, "%.1f") << "\" y1=\"" << fmt(y, "%.1f") << "\" x2=\""
@@ -243,7 +255,7 @@ std::string sweepSvg(const std::vector<SweepRow>& rows) {
       << "\" stroke=\"#888\"/>\n";
     for (size_t i = 0; i < rows.size(); ++i) {
         const SweepRow& r = rows[i];
-        keyRow(keyT + rowH * double(i + 1), std::to_string(i + 1), r.setting, fmt(r.seconds, "%.2f"),
+        keyRow(keyT + rowH * double(i + 1), std::to_string(i + 1), r.setting, fmt(r.seconds, "%.3g"),
                std::to_string(r.falseKeeps), std::to_string(r.falseCulls), false, r.falseCulls > 0);
     }
     for (const Text& t : texts) s << t.svg();

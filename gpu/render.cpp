@@ -293,7 +293,8 @@ Expected<RenderReport> renderLightView(const BakeWindow& w, const ChunkVerdicts&
         {"culled (proved 0): " + groups(report.culled), true, kCulledColour},
         {"kept (proved 1, a witness): " + groups(report.kept), true, kKeptColour},
         {"undecided (written 1, no proof): " + groups(report.undecided), true, kUndecidedColour},
-        {"neighbour chunks (occluders and receivers, not baked)", true, kNeighbourColour}};
+        {"neighbour chunks (occluders and receivers, not baked)", true, kNeighbourColour},
+        {"nothing loaded there", true, Rgb{0, 0, 0}}};
     if (!rq.outlined.empty())
         legend.push_back({"outlined: " + groups(rq.outlined.size()) + " " + rq.outlineMeaning +
                               (report.outlined < rq.outlined.size()

@@ -108,7 +108,7 @@ RgbImage composePicture(const RenderedViews& rv, const std::vector<std::string>&
         int x = pad;
         if (e.swatch) {
             img.fillRect(x, y, swatch, swatch, e.colour);
-            img.strokeRect(x, y, swatch, swatch, {0, 0, 0}, 1);
+            img.strokeRect(x, y, swatch, swatch, {150, 150, 150}, 1);
         }
         x += swatch + pad;
         drawText(img, x, y + s, e.text, kText, s);
