@@ -51,7 +51,8 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
     }
 
     uint64_t bits = 0, falseCulls = 0, falseKeeps = 0, undecided = 0;
-    std::set<std::pair<ChunkCoord, int>> pictures;  // (chunk, light) with a disagreement
+    // (chunk, light) with a disagreement -> the (object, group) pairs that disagree there.
+    std::map<std::pair<ChunkCoord, int>, std::vector<std::pair<size_t, int>>> pictures;
     std::string lines;
     for (size_t c = 0; c < a->chunks.size() && c < g->chunks.size(); ++c) {
         const ChunkVerdicts& av = a->chunks[c];
@@ -82,7 +83,7 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
                     } else {
                         continue;
                     }
-                    pictures.insert({av.coord, l});
+                    pictures[{av.coord, l}].push_back({oi, grp});
                     lines += "  " + chunkFileName(av.coord) + "  " + objectName(ov) + "  group " + std::to_string(grp) +
                              "  light " + std::to_string(l + 1) + " '" + a->settings.lights[size_t(l)].name + "': " + kind +
                              " (GPU " + (gpuOne ? "1" : "0") + ", analytic " + verdictName(ad.verdict) + ")\n      " +
@@ -100,7 +101,8 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
         // One bake per chunk, however many of its lights disagree (pictures is sorted by chunk).
         std::optional<ChunkCoord> bakedAt;
         Expected<ChunkBake> cb = makeError(ErrorKind::Internal, "", 0, "no chunk baked yet");
-        for (const auto& [coord, light] : pictures) {
+        for (const auto& [where, groups] : pictures) {
+            const auto& [coord, light] = where;
             if (!bakedAt || !(*bakedAt == coord)) {
                 cb = bakeChunk(analytic, coord);
                 bakedAt = coord;
@@ -111,12 +113,22 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
             }
             const std::string png = (fs::path(options.outDir) / (chunkFileName(coord) + "-light" + std::to_string(light + 1) + ".png")).string();
             Status s = refuseInputAsOutput(png, cb->space->inputFiles(), "--pictures");
-            if (s) s = gpu::renderLightView(cb->window, cb->verdicts, light, options.gpuResolution, png);
             if (!s) {
                 err << "shadowcull: error: " << s.error().what() << "\n";
                 return exitCodeFor(s.error().kind);
             }
-            out << "picture: " << png << "\n";
+            gpu::RenderRequest rq;
+            rq.light = light;
+            rq.resolution = options.gpuResolution;
+            rq.outlined = groups;
+            rq.outlineMeaning = "where the GPU method disagrees";
+            Expected<gpu::RenderReport> r = gpu::renderLightView(cb->window, cb->verdicts, rq, png);
+            if (!r) {
+                err << "shadowcull: error: " << r.error().what() << "\n";
+                return exitCodeFor(r.error().kind);
+            }
+            out << "picture: " << png << " (" << groups.size() << (groups.size() == 1 ? " disagreeing group" : " disagreeing groups")
+                << " outlined in magenta)\n";
         }
     }
     return falseCulls ? 1 : 0;

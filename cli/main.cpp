@@ -17,9 +17,9 @@
 #include "cli/diff.h"
 #include "cli/explain.h"
 #include "cli/gltf_commands.h"
+#include "cli/render_command.h"
 #include "cli/report.h"
 #include "cli/sweep.h"
-#include "gpu/render.h"
 
 using namespace shadowcull;
 using namespace shadowcull::cli;
@@ -213,25 +213,9 @@ int main(int argc, char** argv) {
     if (*diff) return runDiff(diffOpt, std::cout, std::cerr);
     if (*check) return runCheck(checkOpt, std::cout, std::cerr);
     if (*render) {
-        std::optional<ChunkCoord> c = parseChunkArgument(renderChunk);
-        if (!c) {
-            std::fprintf(stderr, "shadowcull: error: %s: not a chunk name (XXXXZZZZo.chunk)\n", renderChunk.c_str());
-            return kExitUsage;
-        }
-        renderOpt.write = false;
-        renderOpt.gpuBaseline = renderMethod == "gpu";
-        Expected<ChunkBake> cb = bakeChunk(renderOpt, *c);
-        if (!cb) {
-            std::fprintf(stderr, "shadowcull: error: %s\n", cb.error().what().c_str());
-            return exitCodeFor(cb.error().kind);
-        }
-        Status s = refuseInputAsOutput(renderOut, cb->space->inputFiles(), "--out");
-        if (s) s = gpu::renderLightView(cb->window, cb->verdicts, renderLight - 1, renderOpt.gpuResolution, renderOut);
-        if (!s) {
-            std::fprintf(stderr, "shadowcull: error: %s\n", s.error().what().c_str());
-            return exitCodeFor(s.error().kind);
-        }
-        return kExitOk;
+        RenderOptions ro{renderOpt, renderChunk, renderOut, renderLight};
+        ro.bake.gpuBaseline = renderMethod == "gpu";
+        return runRender(ro, std::cout, std::cerr);
     }
     if (*explain) return runExplain(explainOpt, std::cout, std::cerr);
     if (*import) return runImport(importOpt, importSun, std::cout, std::cerr);
@@ -241,6 +225,7 @@ int main(int argc, char** argv) {
         if (noGpu) ladder.erase(std::remove_if(ladder.begin(), ladder.end(), [](const SweepSetting& s) { return s.name.find("gpu") != std::string::npos || s.name.find("GPU") != std::string::npos; }), ladder.end());
         else
             for (SweepSetting& s : gpuBaselineLadder(sweepOpt.quick)) ladder.push_back(std::move(s));
+        sweepOpt.progress = &std::cerr;
         Expected<std::vector<SweepRow>> rows = runSweep(sweepOpt, ladder);
         if (!rows) {
             std::fprintf(stderr, "shadowcull: error: %s\n", rows.error().what().c_str());

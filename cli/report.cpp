@@ -69,7 +69,12 @@ results::ResultsFile resultsFile(const BakeResult& r) {
     f.space = r.settings.spaceDir;
     for (size_t l = 0; l < r.settings.lights.size(); ++l) {
         const Light& L = r.settings.lights[l];
-        f.lights.push_back({int(l) + 1, int(l), L.name, lightTypeName(L.type)});
+        results::LightRecord& r = f.lights.emplace_back();
+        r.index = int(l) + 1, r.bit = int(l), r.name = L.name, r.type = lightTypeName(L.type);
+        if (L.type != LightType::Directional) r.position = L.position, r.range = L.range;
+        if (L.type != LightType::Point) r.direction = L.direction;
+        if (L.type == LightType::Spot) r.coneAngle = L.coneHalfAngleDeg;
+        r.bias = L.bias, r.slopeBias = L.slopeBias, r.filterRadius = L.filterRadius;
     }
     for (const ChunkVerdicts& cv : r.chunks) {
         results::ChunkRecord& c = f.chunks.emplace_back();
@@ -87,6 +92,8 @@ results::ResultsFile resultsFile(const BakeResult& r) {
                 results::GroupRecord& gr = o.groups.emplace_back();
                 gr.group = g;
                 gr.mask = cv.groupMask(oi, g);
+                if (size_t(g) < ov.wsGroupBounds.size() && ov.wsGroupBounds[size_t(g)][0].x <= ov.wsGroupBounds[size_t(g)][1].x)
+                    gr.bounds = ov.wsGroupBounds[size_t(g)];
                 o.mask |= gr.mask;
                 for (int l = 0; l < cv.lightCount; ++l) {
                     const Decision& d = cv.at(oi, g, l);
@@ -97,7 +104,11 @@ results::ResultsFile resultsFile(const BakeResult& r) {
                     b.stage = std::string(d.stage);
                     b.reason = std::string(d.reason());
                     if (const Witness* w = d.witness())
-                        b.witness = results::WitnessRecord{w->wsOrigin, w->wsDirection, w->wsP, w->wsQ, w->receiver};
+                    {
+                        b.witness = results::WitnessRecord{w->wsOrigin, w->wsDirection, w->wsP, w->wsQ, w->receiver, std::nullopt};
+                        if (w->wsReceiverMin.x <= w->wsReceiverMax.x)
+                            b.witness->receiverBounds = results::BoxRecord{w->wsReceiverMin, w->wsReceiverMax};
+                    }
                 }
             }
         }

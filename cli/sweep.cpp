@@ -9,6 +9,7 @@
 #include <map>
 #include <sstream>
 
+#include "cli/sweep_plot.h"
 #include "core/format.h"
 
 namespace shadowcull::cli {
@@ -94,9 +95,21 @@ Expected<std::vector<SweepRow>> runSweep(const SweepOptions& options, const std:
         for (const auto& [path, option] : {std::pair{options.csvPath, "--csv"}, std::pair{options.svgPath, "--svg"}})
             if (Status s = refuseInputAsOutput(path, space->inputFiles(), option); !s) return s.error();
     }
+    // Progress: a line before the reference and after each setting, so that a long sweep
+    // shows where it is and how long the settings take.
+    const auto start = std::chrono::steady_clock::now();
+    auto say = [&](const std::string& line) {
+        if (!options.progress) return;
+        char t[32];
+        std::snprintf(t, sizeof t, "%.1f s", std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        *options.progress << "shadowcull: sweep: " << line << " (" << t << " elapsed)\n" << std::flush;
+    };
+    say("reference bake (every analytic stage, GPU confirmation at 2048 px, " +
+        std::to_string(options.referenceSamples) + " samples), then " + std::to_string(ladder.size()) + " settings");
     Expected<BakeResult> reference = runBake(refOpt);
     if (!reference) return reference.error();
     const auto ref = index(*reference);
+    say("reference done");
 
     std::vector<SweepRow> rows;
     for (const SweepSetting& s : ladder) {
@@ -106,6 +119,8 @@ Expected<std::vector<SweepRow>> runSweep(const SweepOptions& options, const std:
         SweepRow row;
         row.setting = s.name;
         row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        say(std::to_string(rows.size() + 1) + "/" + std::to_string(ladder.size()) + " " + s.name + ": " +
+            formatNumber(std::round(row.seconds * 100) / 100) + " s");
         for (const auto& [key, d] : index(*r)) {
             ++row.bits;
             const bool one = d->verdict != Verdict::Culled;
@@ -149,44 +164,8 @@ int reportSweep(const SweepOptions& options, const std::vector<SweepRow>& rows, 
         }
     }
     if (!options.svgPath.empty()) {
-        // False keeps (y) against seconds (x, log scale); false culls marked in red.
-        const double w = 720, h = 420, left = 70, right = 250, top = 30, bottom = 50;
-        double tMin = 1e300, tMax = 0;
-        uint64_t kMax = 1;
-        for (const SweepRow& r : rows) {
-            tMin = std::min(tMin, std::max(r.seconds, 1e-4));
-            tMax = std::max(tMax, std::max(r.seconds, 1e-4));
-            kMax = std::max<uint64_t>(kMax, r.falseKeeps + r.falseCulls);
-        }
-        const double l0 = std::log10(tMin) - 0.1, l1 = std::log10(tMax) + 0.1;
-        auto X = [&](double s) { return left + (std::log10(std::max(s, 1e-4)) - l0) / (l1 - l0) * (w - left - right); };
-        auto Y = [&](double k) { return h - bottom - k / double(kMax) * (h - top - bottom); };
-        std::ostringstream svg;
-        svg << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h
-            << "\" font-family=\"sans-serif\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-        svg << "<line x1=\"" << left << "\" y1=\"" << h - bottom << "\" x2=\"" << w - right << "\" y2=\"" << h - bottom
-            << "\" stroke=\"black\"/>\n<line x1=\"" << left << "\" y1=\"" << top << "\" x2=\"" << left << "\" y2=\""
-            << h - bottom << "\" stroke=\"black\"/>\n";
-        svg << "<text x=\"" << (left + w - right) / 2 << "\" y=\"" << h - 12
-            << "\" text-anchor=\"middle\">seconds (log scale)</text>\n<text x=\"14\" y=\"" << (top + h - bottom) / 2
-            << "\" transform=\"rotate(-90 14 " << (top + h - bottom) / 2
-            << ")\" text-anchor=\"middle\">false keeps (+ false culls, red)</text>\n";
-        for (double e = std::ceil(l0); e <= l1; e += 1)
-            svg << "<text x=\"" << X(std::pow(10, e)) << "\" y=\"" << h - bottom + 14 << "\" text-anchor=\"middle\">"
-                << formatNumber(std::pow(10, e)) << "</text>\n";
-        svg << "<text x=\"" << left - 6 << "\" y=\"" << Y(double(kMax)) + 4 << "\" text-anchor=\"end\">" << kMax
-            << "</text>\n<text x=\"" << left - 6 << "\" y=\"" << Y(0) + 4 << "\" text-anchor=\"end\">0</text>\n";
-        for (size_t i = 0; i < rows.size(); ++i) {
-            const SweepRow& r = rows[i];
-            const double x = X(r.seconds), y = Y(double(r.falseKeeps + r.falseCulls));
-            svg << "<circle cx=\"" << x << "\" cy=\"" << y << "\" r=\"5\" fill=\"" << (r.falseCulls ? "#d62728" : "#1f77b4")
-                << "\"/>\n<text x=\"" << x + 7 << "\" y=\"" << y - 6 << "\">" << i + 1 << "</text>\n";
-            svg << "<text x=\"" << w - right + 10 << "\" y=\"" << top + 14 * double(i) << "\">" << i + 1 << ": " << r.setting
-                << "</text>\n";
-        }
-        svg << "</svg>\n";
         std::ofstream f(options.svgPath, std::ios::binary);
-        f << svg.str();
+        f << sweepSvg(rows);
         if (!f) {
             err << "shadowcull: error: " << options.svgPath << ": cannot write\n";
             return kExitIo;

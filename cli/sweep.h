@@ -20,6 +20,7 @@ struct SweepOptions {
     int threads = 0;
     int referenceSamples = 4096;   // area samples of the reference bake
     bool quick = false;            // a shorter ladder (tests)
+    std::ostream* progress = nullptr;  // a line per bake of the sweep (the command: stderr)
 };
 
 struct SweepRow {

@@ -33,6 +33,17 @@ ChunkVerdicts makeChunkVerdicts(const Space& space, const BakeWindow& window) {
         if (ov.windowObject >= 0) {
             ov.groupCount = int(window.objects[size_t(ov.windowObject)].mesh->groups.size());
             ov.decisions.resize(size_t(ov.groupCount) * size_t(cv.lightCount));
+            const WindowObject& wo = window.objects[size_t(ov.windowObject)];
+            ov.wsGroupBounds.assign(size_t(ov.groupCount), {glm::dvec3(1e300), glm::dvec3(-1e300)});
+            for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
+                const size_t g = wo.mesh->triangleGroup[t];
+                if (g >= ov.wsGroupBounds.size()) continue;
+                for (uint32_t v : wo.mesh->triangles[t]) {
+                    const glm::dvec3 p = wo.lsTransform.apply(wo.mesh->positions[v]) + window.wsOrigin;
+                    ov.wsGroupBounds[g][0] = glm::min(ov.wsGroupBounds[g][0], p);
+                    ov.wsGroupBounds[g][1] = glm::max(ov.wsGroupBounds[g][1], p);
+                }
+            }
         }
         cv.objects.push_back(std::move(ov));
     }

@@ -18,6 +18,18 @@ using nlohmann::json;
 // Writing
 
 json vecJson(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
+json boxJson(const BoxRecord& b) { return json::array({vecJson(b[0]), vecJson(b[1])}); }
+
+json lightJson(const LightRecord& L) {
+    json j = {{"index", L.index}, {"bit", L.bit}, {"name", L.name}, {"type", L.type}};
+    if (L.position) j["position"] = vecJson(*L.position);
+    if (L.direction) j["direction"] = vecJson(*L.direction);
+    for (const auto& [key, v] : {std::pair{"range", &L.range}, std::pair{"coneAngle", &L.coneAngle},
+                                 std::pair{"bias", &L.bias}, std::pair{"slopeBias", &L.slopeBias},
+                                 std::pair{"filterRadius", &L.filterRadius}})
+        if (*v) j[key] = **v;
+    return j;
+}
 
 json bitJson(const BitRecord& b) {
     json j;
@@ -32,6 +44,7 @@ json bitJson(const BitRecord& b) {
         j["witness"] = {{"origin", vecJson(w.origin)}, {"direction", vecJson(w.direction)},
                         {"p", vecJson(w.p)},           {"q", vecJson(w.q)},
                         {"receiver", w.receiver}};
+        if (w.receiverBounds) j["witness"]["receiverBounds"] = boxJson(*w.receiverBounds);
     }
     return j;
 }
@@ -50,7 +63,9 @@ json objectJson(const ObjectRecord& o) {
     for (const GroupRecord& g : o.groups) {
         json bits = json::array();
         for (const BitRecord& b : g.lights) bits.push_back(bitJson(b));
-        groups.push_back({{"group", g.group}, {"mask", g.mask}, {"lights", std::move(bits)}});
+        json jg = {{"group", g.group}, {"mask", g.mask}, {"lights", std::move(bits)}};
+        if (g.bounds) jg["bounds"] = boxJson(*g.bounds);
+        groups.push_back(std::move(jg));
     }
     j["mask"] = o.mask;
     j["groups"] = std::move(groups);
@@ -110,6 +125,11 @@ glm::dvec3 readVec(const json& a) {
     return {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()};
 }
 
+BoxRecord readBox(const json& a) {
+    if (!a.is_array() || a.size() != 2) throw BadContent{"expected [[x, y, z], [x, y, z]]"};
+    return {readVec(a[0]), readVec(a[1])};
+}
+
 // The fields are read in the order `shadowcull diff` always read them, so that a file with
 // several faults is reported by the first, as before.
 BitRecord readBit(const json& jl, int light) {
@@ -122,7 +142,8 @@ BitRecord readBit(const json& jl, int light) {
     if (jl.contains("witness")) {
         const json& w = jl["witness"];
         b.witness = WitnessRecord{readVec(w.at("origin")), readVec(w.at("direction")), readVec(w.at("p")),
-                                  readVec(w.at("q")), w.value("receiver", std::string())};
+                                  readVec(w.at("q")), w.value("receiver", std::string()), std::nullopt};
+        if (w.contains("receiverBounds")) b.witness->receiverBounds = readBox(w["receiverBounds"]);
     }
     return b;
 }
@@ -145,6 +166,7 @@ ObjectRecord readObject(const json& jo, const std::string& at, std::string& wher
         GroupRecord g;
         g.group = int(o.groups.size());
         g.mask = integer<uint32_t>(jg, "mask");
+        if (jg.contains("bounds")) g.bounds = readBox(jg["bounds"]);
         for (const json& jl : jg.at("lights")) {
             where = ga + ".lights[" + std::to_string(g.lights.size()) + "]";
             if (integer<size_t>(jl, "light") != g.lights.size() + 1) throw BadContent{"lights out of order"};
@@ -204,7 +226,7 @@ std::string resultsTail(const ResultsFile& file, bool anyChunk) {
     j["space"] = file.space;
     json lights = json::array();
     for (const LightRecord& L : file.lights)
-        lights.push_back({{"index", L.index}, {"bit", L.bit}, {"name", L.name}, {"type", L.type}});
+        lights.push_back(lightJson(L));
     j["lights"] = std::move(lights);
     const Summary& s = file.summary;
     json culledBy = json::object();
@@ -293,6 +315,12 @@ Expected<ResultsFile> parseResults(const std::string& path, const std::string& t
             r.type = L.at("type").get<std::string>();
             r.bit = L.contains("bit") ? integer<int>(L, "bit") : int(f.lights.size());
             r.index = L.contains("index") ? integer<int>(L, "index") : int(f.lights.size()) + 1;
+            if (L.contains("position")) r.position = readVec(L["position"]);
+            if (L.contains("direction")) r.direction = readVec(L["direction"]);
+            for (const auto& [key, v] : {std::pair{"range", &r.range}, std::pair{"coneAngle", &r.coneAngle},
+                                         std::pair{"bias", &r.bias}, std::pair{"slopeBias", &r.slopeBias},
+                                         std::pair{"filterRadius", &r.filterRadius}})
+                if (L.contains(key)) *v = L[key].get<double>();
             f.lights.push_back(std::move(r));
         }
         size_t ci = 0;

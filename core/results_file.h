@@ -4,6 +4,7 @@
 // Plain data: JSON stays inside results_file.cpp.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -22,9 +23,13 @@ inline constexpr const char* kFormat = "shadowcull-results";
 inline constexpr int kVersion = 1;
 
 // The ray that proves a 1 (core/verdict.h Witness): world metres.
+// A world box {min, max}: what the pictures of `diff --html` draw for an object.
+using BoxRecord = std::array<glm::dvec3, 2>;
+
 struct WitnessRecord {
     glm::dvec3 origin{0.0}, direction{0.0}, p{0.0}, q{0.0};
     std::string receiver;  // label of the receiving object, with its group
+    std::optional<BoxRecord> receiverBounds;  // the receiving object's box (left out: unknown)
 };
 
 // One (group, light) bit. `stage` and `reason` are empty when the file has none (an
@@ -39,6 +44,7 @@ struct BitRecord {
 struct GroupRecord {
     int group = 0;                 // from 0, in order
     uint32_t mask = 0;             // the group's <shadow> bits
+    std::optional<BoxRecord> bounds;  // the group's triangles (left out: none, or unknown)
     std::vector<BitRecord> lights;  // [light - 1]
 };
 
@@ -63,6 +69,11 @@ struct LightRecord {
     int index = 0;  // from 1, as the space lists the lights
     int bit = 0;    // index - 1: the bit of the masks
     std::string name, type;
+    // The light as baked (so that `diff` can say what changed); each left out when the
+    // type has none, or when the file is older than these fields.
+    std::optional<glm::dvec3> position, direction;  // world; direction normalised
+    std::optional<double> range, coneAngle;         // metres; spot half-angle, degrees
+    std::optional<double> bias, slopeBias, filterRadius;  // metres
 };
 
 // Counts over every bit of the file (what the bake's summary line prints).

@@ -3,6 +3,7 @@
 // (undecided, written as 1). Each decision records the stage and its evidence.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -28,6 +29,8 @@ const char* verdictName(Verdict v);
 struct Witness {
     glm::dvec3 wsOrigin{0.0}, wsDirection{0.0}, wsP{0.0}, wsQ{0.0};
     std::string receiver;  // label of the receiving object, with its group
+    // World box of the receiving object (min > max: unknown), for pictures of the witness.
+    glm::dvec3 wsReceiverMin{1e300}, wsReceiverMax{-1e300};
 };
 
 // What a decision rests on beyond a fixed sentence: a reason with numbers in it, or a
@@ -66,6 +69,9 @@ struct ObjectVerdicts {
     std::string uuid;
     int groupCount = 0;
     std::vector<Decision> decisions;  // [group * lightCount + light]
+    // World box of each group's triangles ({min, max}; min > max for a group without any),
+    // for reports that draw the object.
+    std::vector<std::array<glm::dvec3, 2>> wsGroupBounds;
 };
 
 struct ChunkVerdicts {

@@ -308,6 +308,8 @@ struct Tracer {
             wit.wsP = p + w.wsOrigin;
             wit.wsQ = q + w.wsOrigin;
             wit.receiver = ro.label + " group " + std::to_string(ro.mesh->triangleGroup[h.prim]);
+            wit.wsReceiverMin = ro.lsBounds.min + w.wsOrigin;
+            wit.wsReceiverMax = ro.lsBounds.max + w.wsOrigin;
             return wit;
         }
         return std::nullopt;

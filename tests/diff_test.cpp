@@ -78,17 +78,6 @@ SpaceBuilder floatingCubesUnderLamp(double range) {
     return b;
 }
 
-// A cube on flat terrain lit by a lamp at (20,5,20): within range 10 its shadow lands on
-// the terrain (a witness); with range 5 the cube (>= 7.2 m away) is out of reach.
-SpaceBuilder cubeUnderLamp(double range) {
-    SpaceBuilder b;
-    b.addMesh("cube", MeshSpec::box({0, 0, 0}, {1, 1, 1}));
-    b.addFlatTerrain(0, 0, 0.0);
-    b.addLight(LightSpec::point("lamp", {20, 5, 20}, range));
-    b.addModel("cube", Affine::translation({26, 0, 20}), fixedUuid(1));
-    return b;
-}
-
 }  // namespace
 
 // Raycast-only leaves the floating cubes undecided (written 1); the shadow volumes prove 0.
@@ -128,8 +117,8 @@ TEST(Diff, IdenticalBakesExitZero) {
 // is self-contained and holds the changed row and a plot of the old witness.
 TEST(Diff, LostWitnessAndHtmlReport) {
     const fs::path dir = freshTestDir();
-    const fs::path a = bakeToJson(cubeUnderLamp(10), dir, "range10");
-    const fs::path b = bakeToJson(cubeUnderLamp(5), dir, "range5");
+    const fs::path a = bakeToJson(cubeBesideLamp(10), dir, "range10");
+    const fs::path b = bakeToJson(cubeBesideLamp(5), dir, "range5");
     const DiffRun r = diff(a, b, dir / "report.html", dir / "report.json");
     EXPECT_EQ(r.code, cli::kDiffChanged) << r.err;
     EXPECT_NE(r.out.find(fixedUuid(1) + " (model #0)  group 0  light 1 'lamp': 1 -> 0"), std::string::npos) << r.out;

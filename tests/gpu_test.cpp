@@ -868,32 +868,40 @@ TEST(GpuRender, ColoursTheLightViewByVerdict) {
     decide(l->verdicts.at(l->object("terrain"), 0, 0), Verdict::Culled, "test", "");
     decide(l->verdicts.at(l->object(fixedUuid(2)), 0, 0), Verdict::Kept, "test", "");
     const std::string png = (freshTestDir("png") / "sun.png").string();
-    Status s = gpu::renderLightView(l->window, l->verdicts, 0, 128, png);
-    ASSERT_TRUE(s) << s.error().what();
+    gpu::RenderRequest rq;
+    rq.resolution = 128;
+    Expected<gpu::RenderReport> r = gpu::renderLightView(l->window, l->verdicts, rq, png);
+    ASSERT_TRUE(r) << r.error().what();
     int w = 0, h = 0;
     const std::vector<unsigned char> px = readPngRgb(png, w, h);
     ASSERT_FALSE(px.empty());
-    EXPECT_EQ(w, 128);
-    EXPECT_EQ(h, 128);
+    EXPECT_EQ(w, r->width);
+    EXPECT_EQ(h, r->height);
+    EXPECT_EQ(r->tile, 128);
+    // The view tile only: the title and legend around it have swatches of the same colours.
     int red = 0, green = 0, other = 0;
-    for (size_t k = 0; k < px.size(); k += 3) {
-        const int r = px[k], g = px[k + 1], b = px[k + 2];
-        if (r > 2 * g && r > 2 * b) ++red;
-        else if (g > 2 * r && g > 2 * b) ++green;
-        else ++other;
-    }
+    for (int y = r->viewY; y < r->viewY + 128; ++y)
+        for (int x = r->viewX; x < r->viewX + 128; ++x) {
+            const size_t k = (size_t(y) * size_t(w) + size_t(x)) * 3;
+            const int R = px[k], G = px[k + 1], B = px[k + 2];
+            if (R > 2 * G && R > 2 * B) ++red;
+            else if (G > 2 * R && G > 2 * B) ++green;
+            else ++other;
+        }
     EXPECT_GT(red, 128 * 128 / 2) << "the terrain fills most of the view";
     EXPECT_GT(green, 100) << "the 20 m roof of a 100 m chunk";
-    // A point light: six faces side by side.
+    // A point light: six faces, 3 x 2.
     std::unique_ptr<Loaded> lamp = load(lampOverRoof(false), "lamp");
     ASSERT_TRUE(lamp);
     const std::string png2 = (freshTestDir("lamp-png") / "lamp.png").string();
-    ASSERT_TRUE(gpu::renderLightView(lamp->window, lamp->verdicts, 0, 32, png2));
-    readPngRgb(png2, w, h);
-    EXPECT_EQ(w, 96);
-    EXPECT_EQ(h, 64);
+    rq.resolution = 32;
+    Expected<gpu::RenderReport> r2 = gpu::renderLightView(lamp->window, lamp->verdicts, rq, png2);
+    ASSERT_TRUE(r2) << r2.error().what();
+    EXPECT_EQ(r2->cols, 3);
+    EXPECT_EQ(r2->rows, 2);
     // Bad light number.
-    Status bad = gpu::renderLightView(l->window, l->verdicts, 3, 64, png);
+    rq.light = 3;
+    Expected<gpu::RenderReport> bad = gpu::renderLightView(l->window, l->verdicts, rq, png);
     ASSERT_FALSE(bad);
     EXPECT_EQ(bad.error().kind, ErrorKind::BadInput);
 }

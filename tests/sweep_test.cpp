@@ -25,10 +25,16 @@ TEST(Sweep, ReferenceAgreesWithKnownAnswersAndLadderNeverCullsFalsely) {
         opt.quick = true;
         opt.csvPath = (dir / "sweep.csv").string();
         opt.svgPath = (dir / "sweep.svg").string();
+        std::ostringstream progress;
+        opt.progress = &progress;
         cli::BakeResult reference;
         Expected<std::vector<cli::SweepRow>> rows = cli::runSweep(opt, cli::analyticLadder(true), &reference);
         ASSERT_TRUE(rows) << rows.error().what();
         ASSERT_EQ(rows->size(), 5u);
+        // A line before and after the reference, one per setting with its time.
+        const std::string p = progress.str();
+        EXPECT_EQ(std::count(p.begin(), p.end(), '\n'), 7) << p;
+        EXPECT_NE(p.find("shadowcull: sweep: 5/5 raycast+geometry+gpu, 256 samples, 512 px: "), std::string::npos) << p;
         for (const cli::SweepRow& r : *rows) EXPECT_EQ(r.falseCulls, 0u) << r.setting;
 
         auto where = b.locateObjects();

@@ -875,6 +875,15 @@ SpaceBuilder manyChunks(int n) {
     return b;
 }
 
+SpaceBuilder cubeBesideLamp(double range) {
+    SpaceBuilder b;
+    b.addMesh("cube", MeshSpec::box({0, 0, 0}, {1, 1, 1}));
+    b.addFlatTerrain(0, 0, 0.0);
+    b.addLight(LightSpec::point("lamp", {20, 5, 20}, range));
+    b.addModel("cube", Affine::translation({26, 0, 20}), fixedUuid(1));
+    return b;
+}
+
 SpaceBuilder hiddenUnderRoof(bool roofAlphaTested) {
     SpaceBuilder b = flatWorldWithCube();
     GroupSpec roofGroup = GroupSpec::named("roof");

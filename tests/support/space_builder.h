@@ -354,5 +354,9 @@ SpaceBuilder manyChunks(int n);
 // occlusion proof). Alpha-tested roof (.model alphaTest override): light passes it, cube 1.
 // Roof: 1 either way. Terrain: 0.
 SpaceBuilder hiddenUnderRoof(bool roofAlphaTested);
+// (8) Flat terrain at 0; a 1 m cube at (26..27, 0..1, 20..21) beside light 1 "lamp", point
+// at (20,5,20) with the given range: from range 10 on its shadow lands on the terrain (a
+// witness); with range 5 (the cube is >= 7.2 m away) it is out of reach. No expectations.
+SpaceBuilder cubeBesideLamp(double range);
 
 }  // namespace shadowcull::testing

@@ -1,0 +1,22 @@
+// `shadowcull render SPACE --chunk NAME --light N --out FILE.png`: bakes the chunk (dry run)
+// and writes the light's view coloured by verdict (gpu/render.h), then says on stdout which
+// file it wrote and what the picture counts.
+#pragma once
+
+#include <ostream>
+#include <string>
+
+#include "cli/pipeline.h"
+
+namespace shadowcull::cli {
+
+struct RenderOptions {
+    BakeOptions bake;       // spaceDir, resourceRoot, gpuResolution, gpuBaseline
+    std::string chunk;      // XXXXZZZZo or XXXXZZZZo.chunk
+    std::string outPath;    // the PNG
+    int light = 1;          // 1-based
+};
+
+int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err);
+
+}  // namespace shadowcull::cli
