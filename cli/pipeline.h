@@ -26,6 +26,7 @@ enum ExitCode : int {
     kExitIo = 4,            // writing failed; files are either original or complete
     kExitInternal = 5,      // a library failed; nothing written
     kExitBusy = 6,          // another bake holds the output directory's lock; nothing done
+    kExitInterrupted = 130,  // Ctrl-C (128 + SIGINT; SIGTERM gives 143): temporary files removed
 };
 
 int exitCodeFor(ErrorKind kind);
@@ -131,6 +132,10 @@ using Progress = std::function<void(const BakeProgress&)>;
 // or each one: possible only with --resume or during the final renames). A chunk whose file
 // is read-only or changed during the bake is not written and gets a warning.
 Expected<BakeResult> runBake(const BakeOptions& options, const Progress& progress = {});
+
+// Ok, or an Interrupted error once SIGINT or SIGTERM arrived (cli/interrupt.h): the bake
+// checks it between stages and chunks and cleans up on its own thread.
+Status interrupted();
 
 // Effects the window calls for, as the bake simulated them (for the summary and JSON).
 std::vector<std::string> simulatedEffects(const BakeWindow& window, const ChunkVerdicts& verdicts);

@@ -22,6 +22,7 @@
 #include "core/gltf_document.h"
 #include "core/results_file.h"
 #include "core/scene.h"
+#include "core/xml_message.h"
 #include "gltf/glb_writer.h"
 #include "gltf/gltf_import.h"
 
@@ -75,8 +76,9 @@ Expected<SpaceLink> readSpaceLink(const std::string& spaceDir) {
     Expected<std::string> text = readRegularFile(file, "space.xml");
     if (!text) return text.error();
     tinyxml2::XMLDocument doc;
-    if (doc.Parse(text->data(), text->size()) != tinyxml2::XML_SUCCESS || !doc.RootElement())
-        return makeError(ErrorKind::BadInput, file, doc.ErrorLineNum(), "malformed XML");
+    if (doc.Parse(text->data(), text->size()) != tinyxml2::XML_SUCCESS)
+        return makeError(ErrorKind::BadInput, file, doc.ErrorLineNum(), xmlParseProblem(doc));
+    if (!doc.RootElement()) return makeError(ErrorKind::BadInput, file, 0, "no XML element in it");
     SpaceLink link;
     const tinyxml2::XMLElement* source = doc.RootElement()->FirstChildElement("gltfSource");
     if (!source || !source->Attribute("identity"))

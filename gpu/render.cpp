@@ -4,8 +4,7 @@
 #include <cstdio>
 #include <vector>
 
-#include <png.h>
-
+#include "core/png_write.h"
 #include "gpu/gl_api.h"
 #include "gpu/light_view.h"
 #include "gpu/window_draw.h"
@@ -36,31 +35,9 @@ void main() {
 }
 )";
 
+// libpng's own stderr lines become the tool's messages there (core/png_write.h).
 Status writePng(const std::string& path, int width, int height, const std::vector<unsigned char>& rgbTopDown) {
-    FILE* f = std::fopen(path.c_str(), "wb");
-    if (!f) return makeError(ErrorKind::Io, path, 0, "cannot open for writing");
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
-    png_infop info = png ? png_create_info_struct(png) : nullptr;
-    if (!png || !info) {
-        png_destroy_write_struct(&png, &info);
-        std::fclose(f);
-        return makeError(ErrorKind::Io, path, 0, "libpng could not start");
-    }
-    if (setjmp(png_jmpbuf(png))) {
-        png_destroy_write_struct(&png, &info);
-        std::fclose(f);
-        return makeError(ErrorKind::Io, path, 0, "writing the PNG failed");
-    }
-    png_init_io(png, f);
-    png_set_IHDR(png, info, png_uint_32(width), png_uint_32(height), 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
-                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-    png_write_info(png, info);
-    for (int y = 0; y < height; ++y)
-        png_write_row(png, const_cast<png_bytep>(&rgbTopDown[size_t(y) * size_t(width) * 3]));
-    png_write_end(png, nullptr);
-    png_destroy_write_struct(&png, &info);
-    if (std::fclose(f) != 0) return makeError(ErrorKind::Io, path, 0, "closing the PNG failed");
-    return Status::ok();
+    return writeRgbPng(path, width, height, rgbTopDown);
 }
 
 }  // namespace
