@@ -21,6 +21,7 @@
 #include "cli/report.h"
 #include "cli/sweep.h"
 #include "cli/usage.h"
+#include "core/limits.h"
 #include "gpu/render.h"
 
 using namespace shadowcull;
@@ -195,7 +196,7 @@ int main(int argc, char** argv) {
     import->add_option("scene", importOpt.scenePath, "Scene (.gltf or .glb)")->required()->check(existingFile());
     import->footer(kImportExitCodes);
     import->add_option("out", importOpt.outDir, "New space directory (must not exist, or be empty)")->required();
-    import->add_option("--scene", importOpt.scene, "Scene index (default: the file's default scene)");
+    import->add_option("--scene", importOpt.scene, "Scene index (default: the file's default scene)")->check(atLeast(0));
     import->add_option("--sun", importSun, "Add a directional light: AZIMUTH,ELEVATION in degrees (azimuth 0 = -Z, 90 = +X)");
     import->add_option("--bias", importOpt.bias, "Shadow bias of every light, metres (a light node's extras.shadowcull_bias overrides)")
         ->check(within(0.0, 1e5, false))
@@ -206,7 +207,8 @@ int main(int argc, char** argv) {
     import->add_option("--filter-radius", importOpt.filterRadius, "Filter radius of every light, metres")
         ->check(within(0.0, 1e5, false))
         ->capture_default_str();
-    import->add_option("--chunk-size", importOpt.chunkSize, "Chunk side in metres (default 64)");
+    import->add_option("--chunk-size", importOpt.chunkSize, "Chunk side in metres (default 64)")
+        ->check(within(limits::kMinChunkSize, limits::kMaxChunkSize, false));
     import->add_option("--neighbours", importOpt.neighbours, "Chunks loaded on each side of a baked chunk (default: chosen, see docs)")
         ->check(within(0, 64));
     import->add_option("--light-cutoff", importOpt.lightCutoffLux,

@@ -29,6 +29,16 @@ bool parseNumber(const std::string& s, double& v) {
     return end != p && *end == '\0' && errno != ERANGE && std::isfinite(v);
 }
 
+// Whether `s` is written as a whole number ("1e3" and "16.0" are not: CLI11 would fail to
+// convert them into the option's integer with a message of its own).
+bool wholeText(const std::string& s) {
+    size_t k = (!s.empty() && (s[0] == '-' || s[0] == '+')) ? 1 : 0;
+    if (k == s.size()) return false;
+    for (; k < s.size(); ++k)
+        if (s[k] < '0' || s[k] > '9') return false;
+    return true;
+}
+
 // Bounds as typed: 1048576, not 1.04858e+06.
 std::string bound(double v) {
     if (v == std::floor(v) && std::abs(v) < 1e15) return std::to_string((long long)v);
@@ -44,7 +54,7 @@ CLI::Validator atLeast(long long min) {
     return CLI::Validator(
         [want, min](std::string& s) -> std::string {
             double v = 0;
-            if (!parseNumber(s, v) || v != std::floor(v)) return "must be a whole number, " + want + got("'" + s + "'");
+            if (!wholeText(s) || !parseNumber(s, v)) return "must be a whole number, " + want + got("'" + s + "'");
             if (v < double(min)) return "must be " + want + got(s);
             return {};
         },
@@ -56,7 +66,7 @@ CLI::Validator within(double lo, double hi, bool whole) {
     return CLI::Validator(
         [=](std::string& s) -> std::string {
             double v = 0;
-            if (!parseNumber(s, v) || (whole && v != std::floor(v)))
+            if (!parseNumber(s, v) || (whole && !wholeText(s)))
                 return std::string("must be a ") + (whole ? "whole " : "") + "number " + want + got("'" + s + "'");
             if (v < lo || v > hi) return "must be " + want + got(s);
             return {};
@@ -149,7 +159,16 @@ std::string formatParseFailure(const CLI::App* app, const CLI::Error& e) {
         command += " " + sub->get_name();
         break;
     }
-    return "shadowcull: error: " + std::string(e.what()) + "\nRun '" + command + " --help' for the options.\n";
+    // CLI11's own wording where no validator of ours speaks first.
+    std::string what = e.what();
+    if (what == "A subcommand is required")
+        what = "no command given (bake, sweep, diff, explain, check, render, import or export)";
+    const std::string convert = "Could not convert: ";
+    if (what.rfind(convert, 0) == 0)
+        if (const size_t eq = what.find(" = ", convert.size()); eq != std::string::npos)
+            what = what.substr(convert.size(), eq - convert.size()) + ": '" + what.substr(eq + 3) +
+                   "' is not a value of the kind it takes (see --help)";
+    return "shadowcull: error: " + what + "\nRun '" + command + " --help' for the options.\n";
 }
 
 std::string versionText() {

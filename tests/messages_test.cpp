@@ -142,6 +142,10 @@ TEST(Messages, OptionErrorsGiveTheRangeAndTheValue) {
         {"explain " + space + " 00000000o 0 --light 0", "--light: must be 1 or more (got 0)"},
         {"import '" + (dir / "space").string() + "' out", "is a directory, not a file"},
         {"import '" + (dir / "space" / "space.xml").string() + "' out --bias -1", "--bias: must be from 0 to 100000 (got -1)"},
+        {"bake " + space + " --gpu-resolution 1e3", "--gpu-resolution: must be a whole number from 16 to 16384 (got '1e3')"},
+        {"import '" + (dir / "space" / "space.xml").string() + "' out --scene abc", "--scene: must be a whole number, 0 or more (got 'abc')"},
+        {"import '" + (dir / "space" / "space.xml").string() + "' out --chunk-size -5", "--chunk-size: must be from 1 to 100000 (got -5)"},
+        {"", "shadowcull: error: no command given (bake, sweep, diff, explain, check, render, import or export)"},
     };
     for (const OptionCase& c : cases) {
         const int rc = runCli(c.args, dir / "o", dir / "e");
