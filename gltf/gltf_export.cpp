@@ -9,6 +9,7 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -124,13 +125,15 @@ void writeAtomically(const std::string& path, const std::string& bytes) {
     const fs::path target(path);
     const fs::path temp = target.parent_path() / ("." + target.filename().string() + ".export-" + std::to_string(::getpid()));
     {
+        errno = 0;
         std::ofstream f(temp, std::ios::binary);
         f.write(bytes.data(), std::streamsize(bytes.size()));
         f.close();
         if (!f) {
+            const std::string why = errno ? errnoText(errno) : "write failed";
             std::error_code ec;
             fs::remove(temp, ec);
-            fail(path, "could not write (nothing written)", ErrorKind::Io);
+            fail(path, "could not write: " + why + " (nothing written)", ErrorKind::Io);
         }
     }
     std::error_code ec;
