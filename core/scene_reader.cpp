@@ -544,7 +544,8 @@ bool loadOnce(std::map<std::string, Expected<std::shared_ptr<const T>>>& cache, 
         if (r) {
             it = cache.emplace(path, std::make_shared<const T>(std::move(*r))).first;
         } else {
-            diagnostics.push_back({r.error().file, r.error().line, r.error().message});
+            // Says what the bake does about it: the objects are named one by one below.
+            diagnostics.push_back({r.error().file, r.error().line, r.error().message + "; every object using it is skipped"});
             it = cache.emplace(path, r.error()).first;
         }
     }

@@ -86,7 +86,7 @@ TEST(Messages, BadInputSaysFileLineValueAndWhatWasDone) {
          {"space.xml:3: <neighbours left=\"x\"> must be a whole number from 0 to 64"}, {}},
         {"OBJ missing",
          [](const fs::path& d) { fs::remove(d / "models" / "cube.obj"); }, 1,
-         {"models/cube.obj: cannot open OBJ file: no such file or directory", "00000000o.chunk:",
+         {"models/cube.obj: cannot open OBJ file: no such file or directory; every object using it is skipped", "00000000o.chunk:",
           "object skipped (its <shadow> is left as it was)"},
          {}},
         {"OBJ is a directory",
