@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <initializer_list>
 
 namespace shadowcull::cli {
 
@@ -31,8 +32,13 @@ void installInterruptHandlers() {
     sigemptyset(&sa.sa_mask);
     // SA_RESTART: reads and writes in progress go on instead of failing with EINTR.
     sa.sa_flags = SA_RESTART | SA_RESETHAND;
-    ::sigaction(SIGINT, &sa, nullptr);
-    ::sigaction(SIGTERM, &sa, nullptr);
+    for (int signal : {SIGINT, SIGTERM}) {
+        // A signal ignored when the process started (nohup, a script's background job)
+        // stays ignored, as the shell that started it asked.
+        struct sigaction old {};
+        if (::sigaction(signal, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
+        ::sigaction(signal, &sa, nullptr);
+    }
 }
 
 int pendingInterrupt() { return int(received); }

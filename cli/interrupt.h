@@ -7,8 +7,9 @@
 
 namespace shadowcull::cli {
 
-// Installs the handlers for SIGINT and SIGTERM. Each handler is reset to the default by
-// its first delivery (SA_RESETHAND), so a second Ctrl-C ends the process at once.
+// Installs the handlers for SIGINT and SIGTERM, unless the signal was ignored when the
+// process started (then it stays ignored). Each handler is reset to the default by its
+// first delivery (SA_RESETHAND), so a second Ctrl-C ends the process at once.
 void installInterruptHandlers();
 
 // The signal received since the handlers were installed, or 0.

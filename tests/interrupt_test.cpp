@@ -43,7 +43,7 @@ struct Interrupted {
 // Starts `shadowcull bake WORK extraArgs...`, waits until `ready()` (the bake is under
 // way), sends `signal` and waits for it to end.
 Interrupted bakeAndInterrupt(const fs::path& work, const std::function<bool()>& ready, const fs::path& errFile, int signal,
-                             std::vector<std::string> extraArgs) {
+                             std::vector<std::string> extraArgs, bool ignoredAtStart = false) {
     std::vector<std::string> args{SHADOWCULL_BIN, "bake", work.string()};
     args.insert(args.end(), extraArgs.begin(), extraArgs.end());
     pid_t pid = fork();
@@ -52,6 +52,9 @@ Interrupted bakeAndInterrupt(const fs::path& work, const std::function<bool()>& 
         const int devNull = ::open("/dev/null", O_WRONLY);
         ::dup2(err, STDERR_FILENO);
         ::dup2(devNull, STDOUT_FILENO);
+        // Ignored as by nohup or a script's background job; else the default, whatever this
+        // test inherited (ctest started in the background has SIGINT ignored).
+        ::signal(signal, ignoredAtStart ? SIG_IGN : SIG_DFL);
         std::vector<char*> argv;
         for (std::string& a : args) argv.push_back(a.data());
         argv.push_back(nullptr);
@@ -131,6 +134,20 @@ TEST(InterruptResume, KeepsCommittedChunksAndRemovesTemporaries) {
         EXPECT_TRUE(text == original.at(name) || text == complete.at(name)) << name << " is half written";
     ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --resume --quiet", dir / "o", dir / "e"), 0) << readText(dir / "e");
     EXPECT_EQ(chunkTexts(dir / "space"), complete);
+}
+
+// A shell that started the bake with SIGINT ignored (a script's background job) keeps it
+// ignored: the bake goes on and completes.
+TEST(InterruptIgnored, SigintIgnoredAtStartStaysIgnored) {
+    SpaceBuilder b = manyChunks(12);
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --out '" + (dir / "ref").string() + "' --quiet", dir / "o", dir / "e"), 0)
+        << readText(dir / "e");
+    auto staged = [&] { return !temporariesUnder(dir / "space").empty(); };
+    const Interrupted r = bakeAndInterrupt(dir / "space", staged, dir / "stderr", SIGINT, {"--quiet"}, true);
+    EXPECT_EQ(r.exitCode, 0) << r.stderrText;
+    EXPECT_EQ(chunkTexts(dir / "space"), chunkTexts(dir / "ref"));
 }
 
 // In-process: a signal recorded before the bake stops it at the first check, with nothing
