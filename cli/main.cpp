@@ -237,6 +237,7 @@ int main(int argc, char** argv) {
     opt.useGeometry = std::find(stageNames.begin(), stageNames.end(), "geometry") != stageNames.end();
     opt.useGpu = std::find(stageNames.begin(), stageNames.end(), "gpu") != stageNames.end();
     opt.gpuBaseline = method == "gpu";
+    opt.witnessBaselineCulls = opt.gpuBaseline;  // the note says how many 0s have a witness
     if (*bake) return runBakeCommand(opt, quiet);
     if (*diff) return runDiff(diffOpt, std::cout, std::cerr);
     if (*check) return runCheck(checkOpt, std::cout, std::cerr);

@@ -165,6 +165,7 @@ StageRunner::StageRunner(const BakeOptions& opt)
         if (useGpu) stages_.push_back(&confirm_);
     }
     densePass_ = useGpu && opt.useRaycast;
+    witnessBaselineCulls_ = opt.gpuBaseline && opt.witnessBaselineCulls;
 }
 
 std::vector<StageTiming> StageRunner::timings() const {
@@ -182,6 +183,26 @@ Status StageRunner::bake(const BakeWindow& window, ChunkVerdicts& cv, std::vecto
         timings[s].stats.add(st);
     }
     if (Status i = interrupted(); !i) return i;
+    if (witnessBaselineCulls_) {
+        // The baseline's 0s made undecided again in a copy, for the witness rays alone.
+        ChunkVerdicts probe = cv;
+        std::vector<Decision*> culled;
+        for (size_t oi = 0; oi < probe.objects.size(); ++oi)
+            for (int g = 0; g < probe.objects[oi].groupCount; ++g)
+                for (int l = 0; l < probe.lightCount; ++l) {
+                    Decision& d = probe.at(oi, g, l);
+                    if (d.verdict == Verdict::Culled && d.stage == baseline_.name()) {
+                        d = Decision{};
+                        culled.push_back(&d);
+                    }
+                }
+        // The reach stage first: what it proves 0 can have no witness, and it is cheap.
+        StageStats st;
+        if (!culled.empty())
+            for (Stage* stage : {static_cast<Stage*>(&reach_), static_cast<Stage*>(&rays_)})
+                if (Status status = stage->run(window, probe, st); !status) return status;
+        for (const Decision* d : culled) baselineCullsWitnessed_ += d->verdict == Verdict::Kept;
+    }
     if (densePass_) {
         // The dense witness search where the GPU confirmation saw samples pass.
         StageStats st;
@@ -394,11 +415,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     StageRunner runner(opt);
     result.notes.insert(result.notes.end(), runner.notes().begin(), runner.notes().end());
     if (!runner.status()) return runner.status().error();
-    if (opt.gpuBaseline)
-        result.notes.push_back(
-            "--method gpu is the original stencil + occlusion-query method: its masks are NOT conservative (a bit "
-            "may be 0 where the shadow is seen); 'shadowcull check " + opt.spaceDir +
-            "' lists every bit it culls against a witness");
+
     result.stages = runner.timings();
     TerrainMeshes terrainMeshes;
     std::vector<StagedChunk> staged;
@@ -530,6 +547,15 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         if (Status s = commitStagedFile(resultsTemp, opt.resultsPath); !s) return stopWith(s.error());
     }
     result.writeSeconds += since(tc);
+    if (opt.gpuBaseline) {
+        std::string note =
+            "--method gpu is the original stencil + occlusion-query method: its masks are NOT conservative (a bit may be "
+            "0 where the shadow is seen)";
+        if (opt.witnessBaselineCulls)
+            note += "; " + std::to_string(runner.baselineCullsWitnessed()) +
+                    " of the bits it wrote 0 here have a witness ray (a shadow that is seen)";
+        result.notes.push_back(note + "; 'shadowcull check " + opt.spaceDir + "' lists every such bit");
+    }
     result.totalSeconds = since(t0);
     return result;
 }

@@ -45,6 +45,9 @@ struct BakeOptions {
     // The original tool's method instead of the analytic pipeline (a baseline to compare
     // with: NOT conservative, see gpu/baseline.h).
     bool gpuBaseline = false;
+    // With gpuBaseline: also cast witness rays at the bits the baseline culled, to say how
+    // many of them a shadow is seen for (bake's note; `check` lists them). Not written.
+    bool witnessBaselineCulls = false;
     int gpuResolution = 1024;  // pixels per side of each light view
     bool gpuTerrain = false;   // also send terrain groups to the GPU confirmation
     bool write = true;        // false: compute only (tests, reports)
@@ -87,6 +90,9 @@ public:
     std::vector<StageTiming> timings() const;
     // Runs every stage on one window; adds each stage's stats to `timings`.
     Status bake(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<StageTiming>& timings);
+    // With witnessBaselineCulls: bits the baseline culled for which a witness ray was
+    // found so far (false culls; the verdicts written are the baseline's all the same).
+    uint64_t baselineCullsWitnessed() const { return baselineCullsWitnessed_; }
 
 private:
     ReachStage reach_;
@@ -97,6 +103,8 @@ private:
     gpu::GpuBaselineMethod baseline_;
     std::vector<Stage*> stages_;
     bool densePass_ = false;
+    bool witnessBaselineCulls_ = false;
+    uint64_t baselineCullsWitnessed_ = 0;
     Status status_;
     std::vector<std::string> notes_;
 };

@@ -11,6 +11,7 @@
 
 #include "core/png_write.h"
 #include "tests/support/gl_available.h"
+#include "tests/support/sample_space.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 
@@ -241,7 +242,30 @@ TEST(Messages, GpuMethodSaysItIsNotConservative) {
                        "conservative"),
               std::string::npos)
         << err;
-    EXPECT_NE(err.find("'shadowcull check " + (dir / "space").string() + "'"), std::string::npos) << err;
+    EXPECT_NE(err.find("'shadowcull check " + (dir / "space").string() + "' lists every such bit"), std::string::npos) << err;
+    // How many bits check would flag: the GPU method's 0s that have a witness (the sample's
+    // count agrees with check's false culls).
+    EXPECT_NE(err.find(" of the bits it wrote 0 here have a witness ray"), std::string::npos) << err;
+}
+
+TEST(Messages, GpuMethodCountsTheCullsCheckWouldFlag) {
+    REQUIRE_GL();
+    fs::path dir = freshTestDir();
+    sampleSpace().write((dir / "space").string());
+    ASSERT_EQ(runCli("check '" + (dir / "space").string() + "' --gpu-resolution 256 --pictures '" + (dir / "pics").string() + "'",
+                     dir / "o", dir / "e"),
+              1)
+        << readText(dir / "e");
+    const std::string checked = readText(dir / "o");
+    const size_t at = checked.find(" false culls");
+    ASSERT_NE(at, std::string::npos) << checked;
+    const std::string count = checked.substr(checked.rfind(' ', at - 1) + 1, at - checked.rfind(' ', at - 1) - 1);
+    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --dry-run --quiet --method gpu --gpu-resolution 256", dir / "o",
+                     dir / "e"),
+              0)
+        << readText(dir / "e");
+    EXPECT_NE(readText(dir / "e").find("; " + count + " of the bits it wrote 0 here have a witness ray"), std::string::npos)
+        << "check: " << checked.substr(0, at + 12) << "\nbake: " << readText(dir / "e");
 }
 
 // A dry run clears what a killed bake left (under the output lock), and says so.
