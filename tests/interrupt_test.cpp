@@ -82,6 +82,13 @@ Interrupted bakeAndInterrupt(const fs::path& work, const std::function<bool()>& 
     return r;
 }
 
+// A 144-chunk space in DIR/space and its complete bake in DIR/ref.
+void writeSpaceAndReference(const fs::path& dir) {
+    manyChunks(12).write((dir / "space").string());
+    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --out '" + (dir / "ref").string() + "' --quiet", dir / "o", dir / "e"), 0)
+        << readText(dir / "e");
+}
+
 class InterruptTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(InterruptTest, RemovesTemporariesAndLeavesInputsAsTheyWere) {
@@ -116,11 +123,8 @@ INSTANTIATE_TEST_SUITE_P(Signals, InterruptTest, ::testing::Values(SIGINT, SIGTE
 // With --resume each chunk is committed as it is baked: an interrupt keeps those (each
 // complete and recorded), removes the temporaries, and the next --resume bake finishes.
 TEST(InterruptResume, KeepsCommittedChunksAndRemovesTemporaries) {
-    SpaceBuilder b = manyChunks(12);
-    fs::path dir = freshTestDir();
-    b.write((dir / "space").string());
-    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --out '" + (dir / "ref").string() + "' --quiet", dir / "o", dir / "e"), 0)
-        << readText(dir / "e");
+    const fs::path dir = freshTestDir();
+    ASSERT_NO_FATAL_FAILURE(writeSpaceAndReference(dir));
     const auto original = chunkTexts(dir / "space");
     const auto complete = chunkTexts(dir / "ref");
 
@@ -139,11 +143,8 @@ TEST(InterruptResume, KeepsCommittedChunksAndRemovesTemporaries) {
 // A shell that started the bake with SIGINT ignored (a script's background job) keeps it
 // ignored: the bake goes on and completes.
 TEST(InterruptIgnored, SigintIgnoredAtStartStaysIgnored) {
-    SpaceBuilder b = manyChunks(12);
-    fs::path dir = freshTestDir();
-    b.write((dir / "space").string());
-    ASSERT_EQ(runCli("bake '" + (dir / "space").string() + "' --out '" + (dir / "ref").string() + "' --quiet", dir / "o", dir / "e"), 0)
-        << readText(dir / "e");
+    const fs::path dir = freshTestDir();
+    ASSERT_NO_FATAL_FAILURE(writeSpaceAndReference(dir));
     auto staged = [&] { return !temporariesUnder(dir / "space").empty(); };
     const Interrupted r = bakeAndInterrupt(dir / "space", staged, dir / "stderr", SIGINT, {"--quiet"}, true);
     EXPECT_EQ(r.exitCode, 0) << r.stderrText;
