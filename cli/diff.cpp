@@ -21,6 +21,7 @@
 
 #include "cli/pipeline.h"
 #include "core/scene.h"
+#include "core/xml_message.h"
 
 namespace shadowcull::cli {
 
@@ -133,7 +134,7 @@ void readChunkMasks(const std::string& file, ChunkSide& c) {
     if (doc.Parse(text->data(), text->size()) != tinyxml2::XML_SUCCESS) {
         const int line = doc.ErrorLineNum();
         throw InputError{file + (line > 0 ? ":" + std::to_string(line) : "") +
-                         ": cannot read the chunk file: " + doc.ErrorStr()};
+                         ": cannot read the chunk file: " + xmlParseProblem(doc)};
     }
     int element = 0;
     for (const tinyxml2::XMLElement* e = doc.RootElement()->FirstChildElement(); e; e = e->NextSiblingElement()) {

@@ -11,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli/interrupt.h"
 #include "cli/output_guard.h"
 #include "cli/pipeline.h"
 #include "cli/check.h"
@@ -20,6 +21,9 @@
 #include "cli/render_command.h"
 #include "cli/report.h"
 #include "cli/sweep.h"
+#include "cli/usage.h"
+#include "core/limits.h"
+#include "gpu/render.h"
 
 using namespace shadowcull;
 using namespace shadowcull::cli;
@@ -71,6 +75,8 @@ private:
 };
 
 int runBakeCommand(const BakeOptions& opt, bool quiet) {
+    // Ctrl-C and SIGTERM stop the bake between steps, with its temporary files removed.
+    installInterruptHandlers();
     ProgressBar bar(!quiet);
     Expected<BakeResult> r = runBake(opt, [&](const BakeProgress& p) { bar(p); });
     if (!r) {
@@ -87,33 +93,40 @@ int runBakeCommand(const BakeOptions& opt, bool quiet) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    CLI::App app{"shadowcull: bakes which shadow casters matter, per object, primitive group and light"};
+    // Named here, not after argv[0], so that --help reads the same however it was started.
+    CLI::App app{"shadowcull: bakes which shadow casters matter, per object, primitive group and light", "shadowcull"};
     app.require_subcommand(1);
+    app.failure_message(formatParseFailure);
+    app.set_version_flag("--version", versionText, "Print the versions of shadowcull, its libraries and the OpenGL renderer");
+    app.footer(kTopFooter);
 
     BakeOptions opt;
     bool quiet = false;
     CLI::App* bake = app.add_subcommand("bake", "Bake the <shadow> masks of a space's chunk files");
-    bake->add_option("space", opt.spaceDir, "Space directory (holds space.xml and *.chunk)")->required()->check(CLI::ExistingDirectory);
+    bake->add_option("space", opt.spaceDir, "Space directory (holds space.xml and *.chunk)")->required()->check(existingDirectory());
+    bake->footer(kBakeExitCodes);
     bake->add_option("--out", opt.outDir, "Write baked copies of the chunk files here instead of in place");
     bake->add_option("--res", opt.resourceRoot, "Resource root (default: <resourceRoot> of space.xml, else the space)");
     bake->add_option("--chunk", opt.chunkNames, "Bake only these chunks (XXXXZZZZo or XXXXZZZZo.chunk); repeatable");
-    bake->add_option("--threads", opt.threads, "Worker threads (default: all cores)")->check(CLI::NonNegativeNumber);
+    bake->add_option("--threads", opt.threads, "Worker threads (default, or 0: all cores)")->check(atLeast(0));
     bake->add_option("--results", opt.resultsPath, "Write per-bit verdicts and evidence as JSON");
     bake->add_flag("--force-write", opt.forceWrite,
                    "Also replace chunk files that are read-only or whose owner and group cannot be kept");
     bake->add_option("--samples", opt.raycast.areaSamples, "Area samples per group and light for witness rays")
-        ->check(CLI::Range(1, 1 << 20));
+        ->check(within(1, 1 << 20))
+        ->capture_default_str();
     std::vector<std::string> stageNames{"raycast", "geometry", "gpu"};
     bake->add_option("--stages", stageNames, "Stages after the input/reach checks (default: raycast,geometry,gpu)")
         ->delimiter(',')
-        ->check(CLI::IsMember({"raycast", "geometry", "gpu"}));
+        ->check(oneOf({"raycast", "geometry", "gpu"}));
     std::string method = "analytic";
     bake->add_option("--method", method,
                      "analytic (default, conservative) or gpu (the original stencil + occlusion-query method: a baseline, "
                      "NOT conservative)")
-        ->check(CLI::IsMember({"analytic", "gpu"}));
+        ->check(oneOf({"analytic", "gpu"}));
     bake->add_option("--gpu-resolution", opt.gpuResolution, "Pixels per side of each light view (GPU stages)")
-        ->check(CLI::Range(16, 16384));
+        ->check(within(16, 16384))
+        ->capture_default_str();
     bake->add_flag("--gpu-terrain", opt.gpuTerrain,
                    "Also send terrain groups to the GPU confirmation (slow; they are rarely proved there)");
     bake->add_flag("--dry-run", [&](int64_t) { opt.write = false; }, "Compute and report, but write no chunk file");
@@ -123,82 +136,98 @@ int main(int argc, char** argv) {
 
     SweepOptions sweepOpt;
     CLI::App* sweep = app.add_subcommand("sweep", "What accuracy costs in time: a ladder of settings against a dense reference");
-    sweep->add_option("space", sweepOpt.spaceDir, "Space directory")->required()->check(CLI::ExistingDirectory);
+    sweep->add_option("space", sweepOpt.spaceDir, "Space directory")->required()->check(existingDirectory());
+    sweep->footer(kReportExitCodes);
     sweep->add_option("--res", sweepOpt.resourceRoot, "Resource root");
     sweep->add_option("--csv", sweepOpt.csvPath, "Write the table as CSV");
     sweep->add_option("--svg", sweepOpt.svgPath, "Write a plot of false keeps against seconds (SVG)");
-    sweep->add_option("--threads", sweepOpt.threads, "Worker threads (default: all cores)")->check(CLI::NonNegativeNumber);
+    sweep->add_option("--threads", sweepOpt.threads, "Worker threads (default, or 0: all cores)")->check(atLeast(0));
     sweep->add_option("--reference-samples", sweepOpt.referenceSamples, "Area samples of the reference bake")
-        ->check(CLI::Range(1, 1 << 20));
+        ->check(within(1, 1 << 20))
+        ->capture_default_str();
     sweep->add_flag("--quick", sweepOpt.quick, "A shorter ladder");
     bool noGpu = false;
     sweep->add_flag("--no-gpu", noGpu, "Leave out the GPU settings");
 
     DiffOptions diffOpt;
     CLI::App* diff = app.add_subcommand("diff", "Bits that changed between two bakes (results JSON files or baked spaces)");
-    diff->add_option("old", diffOpt.oldPath, "Old results JSON or baked space")->required()->check(CLI::ExistingPath);
-    diff->add_option("new", diffOpt.newPath, "New results JSON or baked space")->required()->check(CLI::ExistingPath);
+    diff->add_option("old", diffOpt.oldPath, "Old results JSON or baked space")->required()->check(existingPath());
+    diff->footer(kDiffExitCodes);
+    diff->add_option("new", diffOpt.newPath, "New results JSON or baked space")->required()->check(existingPath());
     diff->add_option("--html", diffOpt.htmlPath, "Write a self-contained HTML report");
     diff->add_option("--json", diffOpt.jsonPath, "Write the changes as JSON");
 
     ExplainOptions explainOpt;
     CLI::App* explain = app.add_subcommand("explain", "Why each bit of one object is what it is");
-    explain->add_option("space", explainOpt.spaceDir, "Space directory")->required()->check(CLI::ExistingDirectory);
+    explain->add_option("space", explainOpt.spaceDir, "Space directory")->required()->check(existingDirectory());
+    explain->footer(kReportExitCodes);
     explain->add_option("chunk", explainOpt.chunk, "Chunk (XXXXZZZZo or XXXXZZZZo.chunk)")->required();
     explain->add_option("object", explainOpt.object, "Object: uuid, or element index")->required();
     explain->add_option("--res", explainOpt.resourceRoot, "Resource root");
-    explain->add_option("--light", explainOpt.light, "Only this light (1-based)")->check(CLI::PositiveNumber);
+    explain->add_option("--light", explainOpt.light, "Only this light (1-based; default: every light)")->check(atLeast(1));
 
     CheckOptions checkOpt;
     CLI::App* check = app.add_subcommand("check", "Cross-check the original GPU method against the analytic pipeline");
-    check->add_option("space", checkOpt.spaceDir, "Space directory")->required()->check(CLI::ExistingDirectory);
+    check->add_option("space", checkOpt.spaceDir, "Space directory")->required()->check(existingDirectory());
+    check->footer(kCheckExitCodes);
     check->add_option("--res", checkOpt.resourceRoot, "Resource root");
     check->add_option("--gpu-resolution", checkOpt.gpuResolution, "Pixels per side of each light view")
-        ->check(CLI::Range(16, 16384));
+        ->check(within(16, 16384))
+        ->capture_default_str();
     check->add_option("--pictures", checkOpt.outDir, "Directory for the light-view pictures (default: shadowcull-check)");
-    check->add_option("--threads", checkOpt.threads, "Worker threads")->check(CLI::NonNegativeNumber);
+    check->add_option("--threads", checkOpt.threads, "Worker threads (default, or 0: all cores)")->check(atLeast(0));
 
     BakeOptions renderOpt;
     std::string renderChunk, renderOut, renderMethod = "analytic";
     int renderLight = 1;
     CLI::App* render = app.add_subcommand("render", "Write a light's view of a chunk window, coloured by verdict (PNG)");
-    render->add_option("space", renderOpt.spaceDir, "Space directory")->required()->check(CLI::ExistingDirectory);
+    render->add_option("space", renderOpt.spaceDir, "Space directory")->required()->check(existingDirectory());
+    render->footer(kReportExitCodes);
     render->add_option("--chunk", renderChunk, "Chunk (XXXXZZZZo or XXXXZZZZo.chunk)")->required();
-    render->add_option("--light", renderLight, "Light (1-based)")->check(CLI::PositiveNumber);
+    render->add_option("--light", renderLight, "Light (1-based, as in space.xml)")->required()->check(atLeast(1));
     render->add_option("--out", renderOut, "PNG file")->required();
     render->add_option("--res", renderOpt.resourceRoot, "Resource root");
-    render->add_option("--gpu-resolution", renderOpt.gpuResolution, "Pixels per side")->check(CLI::Range(16, 16384));
+    render->add_option("--gpu-resolution", renderOpt.gpuResolution, "Pixels per side")->check(within(16, 16384))->capture_default_str();
     render->add_option("--method", renderMethod, "Colour by the analytic verdicts (default) or the GPU method's")
-        ->check(CLI::IsMember({"analytic", "gpu"}));
+        ->check(oneOf({"analytic", "gpu"}));
 
     gltf::ImportOptions importOpt;
     std::string importSun;
     CLI::App* import = app.add_subcommand("import", "Turn a glTF 2.0 scene (nodes, meshes, KHR_lights_punctual) into a space");
-    import->add_option("scene", importOpt.scenePath, "Scene (.gltf or .glb)")->required()->check(CLI::ExistingFile);
+    import->add_option("scene", importOpt.scenePath, "Scene (.gltf or .glb)")->required()->check(existingFile());
+    import->footer(kImportExitCodes);
     import->add_option("out", importOpt.outDir, "New space directory (must not exist, or be empty)")->required();
-    import->add_option("--scene", importOpt.scene, "Scene index (default: the file's default scene)");
+    import->add_option("--scene", importOpt.scene, "Scene index (default: the file's default scene)")->check(atLeast(0));
     import->add_option("--sun", importSun, "Add a directional light: AZIMUTH,ELEVATION in degrees (azimuth 0 = -Z, 90 = +X)");
     import->add_option("--bias", importOpt.bias, "Shadow bias of every light, metres (a light node's extras.shadowcull_bias overrides)")
-        ->check(CLI::Range(0.0, 1e5));
-    import->add_option("--slope-bias", importOpt.slopeBias, "Slope bias of every light, metres at 45 degrees")->check(CLI::Range(0.0, 1e5));
-    import->add_option("--filter-radius", importOpt.filterRadius, "Filter radius of every light, metres")->check(CLI::Range(0.0, 1e5));
-    import->add_option("--chunk-size", importOpt.chunkSize, "Chunk side in metres (default 64)");
+        ->check(within(0.0, 1e5, false))
+        ->capture_default_str();
+    import->add_option("--slope-bias", importOpt.slopeBias, "Slope bias of every light, metres at 45 degrees")
+        ->check(within(0.0, 1e5, false))
+        ->capture_default_str();
+    import->add_option("--filter-radius", importOpt.filterRadius, "Filter radius of every light, metres")
+        ->check(within(0.0, 1e5, false))
+        ->capture_default_str();
+    import->add_option("--chunk-size", importOpt.chunkSize, "Chunk side in metres (default 64)")
+        ->check(within(limits::kMinChunkSize, limits::kMaxChunkSize, false));
     import->add_option("--neighbours", importOpt.neighbours, "Chunks loaded on each side of a baked chunk (default: chosen, see docs)")
-        ->check(CLI::Range(0, 64));
+        ->check(within(0, 64));
     import->add_option("--light-cutoff", importOpt.lightCutoffLux,
-                       "Lux at which a point or spot light without range ends (default 0.01)")
-        ->check(CLI::PositiveNumber);
+                       "Lux at which a point or spot light without range ends")
+        ->check(positiveNumber())
+        ->capture_default_str();
 
     gltf::ExportOptions exportOpt;
     CLI::App* exportCmd = app.add_subcommand("export", "Write a bake's masks into a copy of the imported glTF scene (extras.shadowcull)");
-    exportCmd->add_option("space", exportOpt.spaceDir, "Space written by import")->required()->check(CLI::ExistingDirectory);
-    exportCmd->add_option("results", exportOpt.resultsPath, "Results JSON of a bake of that space")->required()->check(CLI::ExistingFile);
-    exportCmd->add_option("--gltf", exportOpt.scenePath, "The scene the space was imported from")->required()->check(CLI::ExistingFile);
+    exportCmd->add_option("space", exportOpt.spaceDir, "Space written by import")->required()->check(existingDirectory());
+    exportCmd->footer(kExportExitCodes);
+    exportCmd->add_option("results", exportOpt.resultsPath, "Results JSON of a bake of that space")->required()->check(existingFile());
+    exportCmd->add_option("--gltf", exportOpt.scenePath, "The scene the space was imported from")->required()->check(existingFile());
     exportCmd->add_option("--out", exportOpt.outPath, "The copy to write (.glb for a .glb scene, .gltf for a .gltf scene)")->required();
 
     try {
         app.parse(argc, argv);
-    } catch (const CLI::CallForHelp& e) {
+    } catch (const CLI::Success& e) {  // --help, --version
         return app.exit(e);
     } catch (const CLI::ParseError& e) {
         app.exit(e);
@@ -209,6 +238,7 @@ int main(int argc, char** argv) {
     opt.useGeometry = std::find(stageNames.begin(), stageNames.end(), "geometry") != stageNames.end();
     opt.useGpu = std::find(stageNames.begin(), stageNames.end(), "gpu") != stageNames.end();
     opt.gpuBaseline = method == "gpu";
+    opt.witnessBaselineCulls = opt.gpuBaseline;  // the note says how many 0s have a witness
     if (*bake) return runBakeCommand(opt, quiet);
     if (*diff) return runDiff(diffOpt, std::cout, std::cerr);
     if (*check) return runCheck(checkOpt, std::cout, std::cerr);

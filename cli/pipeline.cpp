@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cmath>
 #include <cstring>
 
@@ -19,6 +20,7 @@
 
 #include <tbb/global_control.h>
 
+#include "cli/interrupt.h"
 #include "cli/output_guard.h"
 #include "cli/report.h"
 #include "cli/resume.h"
@@ -43,6 +45,7 @@ int exitCodeFor(ErrorKind kind) {
         case ErrorKind::Io: return kExitIo;
         case ErrorKind::Internal: return kExitInternal;
         case ErrorKind::Busy: return kExitBusy;
+        case ErrorKind::Interrupted: return exitCodeForSignal(pendingInterrupt() ? pendingInterrupt() : SIGINT);
     }
     return kExitInternal;
 }
@@ -122,6 +125,14 @@ std::vector<ShadowWrite> shadowWrites(const ChunkVerdicts& cv) {
 
 }  // namespace
 
+Status interrupted() {
+    const int signal = pendingInterrupt();
+    if (!signal) return Status::ok();
+    return makeError(ErrorKind::Interrupted, "", 0,
+                     std::string("interrupted by ") + (signal == SIGTERM ? "SIGTERM" : signal == SIGINT ? "Ctrl-C (SIGINT)" : "a signal") +
+                         "; the bake's temporary files were removed");
+}
+
 StageRunner::StageRunner(const BakeOptions& opt)
     : rays_(opt.raycast),
       volumes_(opt.geometry),
@@ -154,6 +165,7 @@ StageRunner::StageRunner(const BakeOptions& opt)
         if (useGpu) stages_.push_back(&confirm_);
     }
     densePass_ = useGpu && opt.useRaycast;
+    witnessBaselineCulls_ = opt.gpuBaseline && opt.witnessBaselineCulls;
 }
 
 std::vector<StageTiming> StageRunner::timings() const {
@@ -165,9 +177,31 @@ std::vector<StageTiming> StageRunner::timings() const {
 
 Status StageRunner::bake(const BakeWindow& window, ChunkVerdicts& cv, std::vector<StageTiming>& timings) {
     for (size_t s = 0; s < stages_.size(); ++s) {
+        if (Status i = interrupted(); !i) return i;
         StageStats st;
         if (Status status = stages_[s]->run(window, cv, st); !status) return status;
         timings[s].stats.add(st);
+    }
+    if (Status i = interrupted(); !i) return i;
+    if (witnessBaselineCulls_) {
+        // The baseline's 0s made undecided again in a copy, for the witness rays alone.
+        ChunkVerdicts probe = cv;
+        std::vector<Decision*> culled;
+        for (size_t oi = 0; oi < probe.objects.size(); ++oi)
+            for (int g = 0; g < probe.objects[oi].groupCount; ++g)
+                for (int l = 0; l < probe.lightCount; ++l) {
+                    Decision& d = probe.at(oi, g, l);
+                    if (d.verdict == Verdict::Culled && d.stage == baseline_.name()) {
+                        d = Decision{};
+                        culled.push_back(&d);
+                    }
+                }
+        // The reach stage first: what it proves 0 can have no witness, and it is cheap.
+        StageStats st;
+        if (!culled.empty())
+            for (Stage* stage : {static_cast<Stage*>(&reach_), static_cast<Stage*>(&rays_)})
+                if (Status status = stage->run(window, probe, st); !status) return status;
+        for (const Decision* d : culled) baselineCullsWitnessed_ += d->verdict == Verdict::Kept;
     }
     if (densePass_) {
         // The dense witness search where the GPU confirmation saw samples pass.
@@ -316,6 +350,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         }
     }
     result.loadSeconds = since(t0);
+    if (Status i = interrupted(); !i) return i.error();
 
     // 3. Outputs: never an input, and every one writable before any work is done.
     const std::vector<std::string> inputs = space.inputFiles();
@@ -337,7 +372,15 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         if (Status s = lock.acquire(outDir); !s) return s.error();
         // Temporaries of a bake that was killed are never chunk files; clear them away
         // (only now: the lock guarantees they are no running bake's).
-        removeStaleTempFiles(outDir);
+        if (const int n = removeStaleTempFiles(outDir))
+            result.notes.push_back("removed " + std::to_string(n) + " temporary file(s) a killed bake left in " + outDir);
+    } else if (!staleTempFiles(outDir).empty()) {
+        // A dry run writes nothing, but clears what a killed bake left, under the same lock
+        // (taken only when there is something to clear; a running bake's files stay).
+        if (Status s = lock.acquire(outDir); !s)
+            result.notes.push_back("temporary files in " + outDir + " left alone: " + s.error().message);
+        else if (const int n = removeStaleTempFiles(outDir))
+            result.notes.push_back("removed " + std::to_string(n) + " temporary file(s) a killed bake left in " + outDir);
     }
     // Where each chunk's bytes go: in place (through a symlink to its target), or a copy
     // under --out. A chunk file that may not be replaced is not baked at all.
@@ -370,8 +413,9 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
 
     // 4. Bake every chunk; stage its new text in a temporary file beside the target.
     StageRunner runner(opt);
-    result.notes = runner.notes();
+    result.notes.insert(result.notes.end(), runner.notes().begin(), runner.notes().end());
     if (!runner.status()) return runner.status().error();
+
     result.stages = runner.timings();
     TerrainMeshes terrainMeshes;
     std::vector<StagedChunk> staged;
@@ -404,6 +448,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     auto lastSave = std::chrono::steady_clock::now();
     size_t done = 0;
     for (size_t k = 0; k < targets.size(); ++k) {
+        if (Status i = interrupted(); !i) return stopWith(i.error());
         const ChunkFile& cf = space.chunks.at(targets[k]);
         const std::string target = targetOf(cf);
         const std::string chunkName = chunkFileName(targets[k]);
@@ -421,7 +466,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         ChunkVerdicts cv = makeChunkVerdicts(space, window);
         if (Status status = runner.bake(window, cv, result.stages); !status) {
             Error e = status.error();
-            if (e.file.empty()) e.file = cf.path;
+            if (e.file.empty() && e.kind != ErrorKind::Interrupted) e.file = cf.path;
             return stopWith(e);
         }
         cv.simulated = simulatedEffects(window, cv);
@@ -459,6 +504,8 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         if (progress) progress({++done, targets.size(), size_t(result.chunksResumed)});
     }
 
+    if (Status i = interrupted(); !i) return stopWith(i.error());
+
     // 5. The results file, staged before any chunk file is renamed: a results file that
     // cannot be written stops the bake with every chunk file as it was.
     std::string resultsTemp;
@@ -467,6 +514,12 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         Expected<std::string> t = stageFile(opt.resultsPath, results::writeResults(resultsFile(result)));
         if (!t) return stopWith(t.error());
         resultsTemp = *t;
+    }
+    // The last moment to stop with nothing written; the renames below take milliseconds
+    // and are not interrupted, so that the chunk files end all old or all new.
+    if (Status i = interrupted(); !i) {
+        if (!resultsTemp.empty()) fs::remove(resultsTemp);
+        return stopWith(i.error());
     }
 
     // 6. Commit: one rename per file. Each rename is atomic, so an interruption here leaves
@@ -494,6 +547,15 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         if (Status s = commitStagedFile(resultsTemp, opt.resultsPath); !s) return stopWith(s.error());
     }
     result.writeSeconds += since(tc);
+    if (opt.gpuBaseline) {
+        std::string note =
+            "--method gpu is the original stencil + occlusion-query method: its masks are NOT conservative (a bit may be "
+            "0 where the shadow is seen)";
+        if (opt.witnessBaselineCulls)
+            note += "; " + std::to_string(runner.baselineCullsWitnessed()) +
+                    " of the bits it wrote 0 here have a witness ray (a shadow that is seen)";
+        result.notes.push_back(note + "; 'shadowcull check " + opt.spaceDir + "' lists every such bit");
+    }
     result.totalSeconds = since(t0);
     return result;
 }

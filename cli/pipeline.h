@@ -26,6 +26,7 @@ enum ExitCode : int {
     kExitIo = 4,            // writing failed; files are either original or complete
     kExitInternal = 5,      // a library failed; nothing written
     kExitBusy = 6,          // another bake holds the output directory's lock; nothing done
+    kExitInterrupted = 130,  // Ctrl-C (128 + SIGINT; SIGTERM gives 143): temporary files removed
 };
 
 int exitCodeFor(ErrorKind kind);
@@ -44,6 +45,9 @@ struct BakeOptions {
     // The original tool's method instead of the analytic pipeline (a baseline to compare
     // with: NOT conservative, see gpu/baseline.h).
     bool gpuBaseline = false;
+    // With gpuBaseline: also cast witness rays at the bits the baseline culled, to say how
+    // many of them a shadow is seen for (bake's note; `check` lists them). Not written.
+    bool witnessBaselineCulls = false;
     int gpuResolution = 1024;  // pixels per side of each light view
     bool gpuTerrain = false;   // also send terrain groups to the GPU confirmation
     bool write = true;        // false: compute only (tests, reports)
@@ -86,6 +90,9 @@ public:
     std::vector<StageTiming> timings() const;
     // Runs every stage on one window; adds each stage's stats to `timings`.
     Status bake(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<StageTiming>& timings);
+    // With witnessBaselineCulls: bits the baseline culled for which a witness ray was
+    // found so far (false culls; the verdicts written are the baseline's all the same).
+    uint64_t baselineCullsWitnessed() const { return baselineCullsWitnessed_; }
 
 private:
     ReachStage reach_;
@@ -96,6 +103,8 @@ private:
     gpu::GpuBaselineMethod baseline_;
     std::vector<Stage*> stages_;
     bool densePass_ = false;
+    bool witnessBaselineCulls_ = false;
+    uint64_t baselineCullsWitnessed_ = 0;
     Status status_;
     std::vector<std::string> notes_;
 };
@@ -131,6 +140,10 @@ using Progress = std::function<void(const BakeProgress&)>;
 // or each one: possible only with --resume or during the final renames). A chunk whose file
 // is read-only or changed during the bake is not written and gets a warning.
 Expected<BakeResult> runBake(const BakeOptions& options, const Progress& progress = {});
+
+// Ok, or an Interrupted error once SIGINT or SIGTERM arrived (cli/interrupt.h): the bake
+// checks it between stages and chunks and cleans up on its own thread.
+Status interrupted();
 
 // Effects the window calls for, as the bake simulated them (for the summary and JSON).
 std::vector<std::string> simulatedEffects(const BakeWindow& window, const ChunkVerdicts& verdicts);

@@ -1,6 +1,8 @@
 #include "cli/report.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 
 namespace shadowcull::cli {
 
@@ -33,6 +35,26 @@ std::string pct(uint64_t a, uint64_t b) { return b ? fmt("%.1f%%", 100.0 * doubl
 
 }  // namespace
 
+std::string formatSimulated(const std::vector<ChunkVerdicts>& chunks) {
+    // Each effect once, in the order first met, with the chunks that simulated it.
+    std::vector<std::pair<std::string, size_t>> effects;
+    for (const ChunkVerdicts& cv : chunks)
+        for (const std::string& e : cv.simulated) {
+            auto it = std::find_if(effects.begin(), effects.end(), [&](const auto& p) { return p.first == e; });
+            if (it == effects.end()) effects.emplace_back(e, 1);
+            else ++it->second;
+        }
+    // Effects of the whole window first, then each light's, in light order.
+    auto lightOf = [](const std::string& e) { return e.rfind("light ", 0) == 0 ? std::atoi(e.c_str() + 6) : 0; };
+    std::stable_sort(effects.begin(), effects.end(), [&](const auto& a, const auto& b) { return lightOf(a.first) < lightOf(b.first); });
+    if (chunks.empty()) return {};
+    if (effects.empty()) return "simulated: nothing beyond the plain definition (no alpha test, terrain, bias or local light)\n";
+    std::string s = "simulated:\n";
+    for (const auto& [effect, n] : effects)
+        s += "  " + effect + (n == chunks.size() ? "" : " (" + std::to_string(n) + " of " + std::to_string(chunks.size()) + " chunks)") + "\n";
+    return s;
+}
+
 std::string formatSummary(const BakeResult& r, bool wrote) {
     const BitCounts c = countBits(r);
     std::string s;
@@ -53,6 +75,7 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
     s += std::string(baselineOnly ? "  culled, 0 samples passed  " : "  proved 0                  ") + std::to_string(c.culled) +
          byStage(c.culledBy);
     s += "\n  undecided, kept as 1      " + std::to_string(c.undecided) + "\n";
+    s += formatSimulated(r.chunks);
     s += "time: load " + fmt("%.2f s", r.loadSeconds);
     for (const StageTiming& st : r.stages) {
         s += ", " + st.name + " " + fmt("%.2f s", st.stats.seconds);

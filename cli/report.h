@@ -20,6 +20,11 @@ struct BitCounts {
 
 BitCounts countBits(const BakeResult& r);
 
+// The effects the bake simulated (semantics.md: "the bake says which it simulated"): each
+// effect of the chunks' `simulated` lists once, with how many chunks it applied to when not
+// all. One line per effect after "simulated:".
+std::string formatSimulated(const std::vector<ChunkVerdicts>& chunks);
+
 // The summary printed at the end of a bake (plain text, deterministic but for the times).
 std::string formatSummary(const BakeResult& r, bool wrote);
 

@@ -433,11 +433,11 @@ Status writeFileAtomic(const std::string& path, const std::string& contents) {
     return commitStagedFile(*staged, path);
 }
 
-int removeStaleTempFiles(const std::string& dir) {
+std::vector<std::string> staleTempFiles(const std::string& dir) {
     static const std::string suffix = ".shadowcull-tmp";
+    std::vector<std::string> out;
     DIR* d = ::opendir(dir.c_str());
-    if (!d) return 0;
-    int removed = 0;
+    if (!d) return out;
     while (const dirent* e = ::readdir(d)) {
         std::string name = e->d_name;
         if (name.size() <= suffix.size() || name[0] != '.' ||
@@ -445,9 +445,16 @@ int removeStaleTempFiles(const std::string& dir) {
             continue;
         std::string full = dir + "/" + name;
         struct stat st {};
-        if (::lstat(full.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::unlink(full.c_str()) == 0) ++removed;
+        if (::lstat(full.c_str(), &st) == 0 && S_ISREG(st.st_mode)) out.push_back(full);
     }
     ::closedir(d);
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+int removeStaleTempFiles(const std::string& dir) {
+    int removed = 0;
+    for (const std::string& f : staleTempFiles(dir)) removed += ::unlink(f.c_str()) == 0;
     return removed;
 }
 

@@ -68,8 +68,11 @@ std::string replaceRefusal(const std::string& path);
 // The temporary name used by writeFileAtomic: ".<name>.shadowcull-tmp" beside `path`.
 std::string tempPathFor(const std::string& path);
 
-// Removes temporaries left in `dir` by an interrupted bake (files matching
-// ".*.shadowcull-tmp"). Returns how many were removed.
+// Temporaries left in `dir` by an interrupted bake: regular files matching
+// ".*.shadowcull-tmp", full paths, sorted.
+std::vector<std::string> staleTempFiles(const std::string& dir);
+
+// Removes those temporaries. Returns how many were removed.
 int removeStaleTempFiles(const std::string& dir);
 
 }  // namespace shadowcull

@@ -10,17 +10,24 @@
 
 namespace shadowcull {
 
+std::string errnoText(int err) {
+    std::string s = std::strerror(err);
+    // Only the first letter: "Input/output error" -> "input/output error".
+    if (!s.empty() && s[0] >= 'A' && s[0] <= 'Z') s[0] = char(s[0] - 'A' + 'a');
+    return s;
+}
+
 Expected<std::string> readRegularFile(const std::string& path, const std::string& what, ErrorKind missingKind,
                                       size_t maxBytes) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-    if (fd < 0) return makeError(missingKind, path, 0, "cannot open " + what + ": " + std::strerror(errno));
+    if (fd < 0) return makeError(missingKind, path, 0, "cannot open " + what + ": " + errnoText(errno));
     struct Closer {
         int fd;
         ~Closer() { ::close(fd); }
     } closer{fd};
     struct stat st {};
     if (::fstat(fd, &st) != 0)
-        return makeError(ErrorKind::Io, path, 0, "cannot inspect " + what + ": " + std::strerror(errno));
+        return makeError(ErrorKind::Io, path, 0, "cannot inspect " + what + ": " + errnoText(errno));
     if (!S_ISREG(st.st_mode)) {
         const char* kind = S_ISDIR(st.st_mode)    ? "a directory"
                            : S_ISFIFO(st.st_mode) ? "a FIFO"
@@ -52,7 +59,7 @@ Expected<std::string> readRegularFile(const std::string& path, const std::string
         }
         const ssize_t n = ::read(fd, out.data() + done, out.size() - done);
         if (n < 0 && errno == EINTR) continue;
-        if (n < 0) return makeError(ErrorKind::Io, path, 0, "cannot read " + what + ": " + std::strerror(errno));
+        if (n < 0) return makeError(ErrorKind::Io, path, 0, "cannot read " + what + ": " + errnoText(errno));
         if (n == 0) break;
         done += size_t(n);
     }

@@ -8,6 +8,10 @@
 
 namespace shadowcull {
 
+// strerror(err) as the middle of a sentence: "no such file or directory", "permission
+// denied", "is a directory".
+std::string errnoText(int err);
+
 // Reads the whole file at `path`. The file is opened without blocking (O_NONBLOCK, so a
 // FIFO with no writer cannot stall the open) and refused unless fstat says it is a regular
 // file; the size is checked against `maxBytes` before anything is read. Errors name the

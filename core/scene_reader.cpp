@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -21,6 +22,7 @@
 #include "core/hash.h"
 #include "core/limits.h"
 #include "core/scene.h"
+#include "core/xml_message.h"
 
 namespace fs = std::filesystem;
 
@@ -139,10 +141,15 @@ Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, doub
     for (int k = 0; k < count; ++k) {
         char* end = nullptr;
         while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r') ++p;
+        errno = 0;
         out[k] = std::strtod(p, &end);
         if (end == p)
             return bad(file, e->GetLineNum(),
                        "<" + std::string(e->Name()) + "> expects " + std::to_string(count) + " number(s), got '" + text + "'");
+        if (errno == ERANGE && std::isinf(out[k]))
+            return bad(file, e->GetLineNum(),
+                       "<" + std::string(e->Name()) + "> value " + std::string(p, size_t(end - p)) +
+                           " is too large to be a number here (more than 1.8e308) in '" + text + "'");
         if (!std::isfinite(out[k]))
             return bad(file, e->GetLineNum(), "<" + std::string(e->Name()) + "> has a non-finite value '" + text + "'");
         if (std::abs(out[k]) > maxAbs)
@@ -190,10 +197,7 @@ Status loadXml(const std::string& path, tinyxml2::XMLDocument& doc, const std::s
         return bad(path, 1 + int(std::count(text->begin(), text->begin() + std::ptrdiff_t(text->find('\0')), '\n')),
                    "binary data (a NUL byte) in an XML file");
     tinyxml2::XMLError rc = doc.Parse(text->data(), text->size());
-    if (rc != tinyxml2::XML_SUCCESS) {
-        const char* s = doc.ErrorStr();
-        return bad(path, doc.ErrorLineNum(), std::string("malformed XML: ") + (s ? s : doc.ErrorName()));
-    }
+    if (rc != tinyxml2::XML_SUCCESS) return bad(path, doc.ErrorLineNum(), xmlParseProblem(doc));
     if (!doc.RootElement()) return bad(path, 1, "no root element");
     return Status::ok();
 }
@@ -201,7 +205,10 @@ Status loadXml(const std::string& path, tinyxml2::XMLDocument& doc, const std::s
 Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* le) {
     Light L;
     L.line = le->GetLineNum();
-    bool hasType = false, hasRange = false, hasCone = false, hasPosition = false, hasDirection = false;
+    bool hasType = false, hasRange = false, hasCone = false, hasPosition = false;
+    // The element each value came from, for messages that point at the line to fix.
+    const tinyxml2::XMLElement *directionElement = nullptr, *rangeElement = nullptr, *coneElement = nullptr;
+    std::vector<std::pair<const tinyxml2::XMLElement*, double*>> distances;  // bias, slopeBias, filterRadius
     for (const tinyxml2::XMLElement* e = le->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
         Status s;
@@ -213,34 +220,47 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
             else if (t == "point") L.type = LightType::Point;
             else if (t == "spot") L.type = LightType::Spot;
             else return bad(file, e->GetLineNum(), "unknown light type '" + t + "' (directional, point or spot)");
-        } else if (n == "direction") { s = parseVec3(file, e, L.direction); hasDirection = true; }
+        } else if (n == "direction") { s = parseVec3(file, e, L.direction); directionElement = e; }
         else if (n == "position") { s = parseVec3(file, e, L.position, limits::kMaxWorldCoordinate); hasPosition = true; }
-        else if (n == "range") { s = parseDouble(file, e, L.range, limits::kMaxLength); hasRange = true; }
-        else if (n == "coneAngle") { s = parseDouble(file, e, L.coneHalfAngleDeg); hasCone = true; }
-        else if (n == "bias") s = parseDouble(file, e, L.bias, limits::kMaxLength);
-        else if (n == "slopeBias") s = parseDouble(file, e, L.slopeBias, limits::kMaxLength);
-        else if (n == "filterRadius") s = parseDouble(file, e, L.filterRadius, limits::kMaxLength);
+        else if (n == "range") { s = parseDouble(file, e, L.range, limits::kMaxLength); hasRange = true; rangeElement = e; }
+        else if (n == "coneAngle") { s = parseDouble(file, e, L.coneHalfAngleDeg); hasCone = true; coneElement = e; }
+        else if (n == "bias") { s = parseDouble(file, e, L.bias, limits::kMaxLength); distances.emplace_back(e, &L.bias); }
+        else if (n == "slopeBias") { s = parseDouble(file, e, L.slopeBias, limits::kMaxLength); distances.emplace_back(e, &L.slopeBias); }
+        else if (n == "filterRadius") { s = parseDouble(file, e, L.filterRadius, limits::kMaxLength); distances.emplace_back(e, &L.filterRadius); }
         if (!s) return s.error();
     }
     const std::string who = "light '" + L.name + "'";
-    if (!hasType) return bad(file, L.line, who + " has no <type>");
+    auto at = [&](const tinyxml2::XMLElement* e) { return e ? e->GetLineNum() : L.line; };
+    if (!hasType) return bad(file, L.line, who + " has no <type> (directional, point or spot)");
     if (L.type != LightType::Point) {
-        if (!hasDirection) return bad(file, L.line, who + " needs a <direction>");
-        // Scale by the largest component first: (1e308, 1e308, 0) and (1e-300, 0, 0) are
-        // directions too, and their length would overflow or underflow.
+        if (!directionElement) return bad(file, L.line, who + " (" + lightTypeName(L.type) + ") needs a <direction>");
+        // Scale by the largest component first: (1e308, -1e308, 1e308) and (1e-300, 0, 0)
+        // are directions too, and their length would overflow or underflow.
         const double big = std::max({std::abs(L.direction.x), std::abs(L.direction.y), std::abs(L.direction.z)});
-        if (!(big > 0.0)) return bad(file, L.line, who + " has a zero <direction>");
+        if (!(big > 0.0))
+            return bad(file, at(directionElement),
+                       who + ": <direction> '" + trim(directionElement->GetText()) +
+                           "' has no length (every component is 0, or too small to tell from 0); give the way the "
+                           "light shines, e.g. 0 -1 0");
         L.direction /= big;
         L.direction /= glm::length(L.direction);
     }
     if (L.type != LightType::Directional) {
-        if (!hasPosition) return bad(file, L.line, who + " needs a <position>");
-        if (!hasRange || !(L.range > 0.0)) return bad(file, L.line, who + " needs a <range> > 0");
+        if (!hasPosition) return bad(file, L.line, who + " (" + lightTypeName(L.type) + ") needs a <position>");
+        if (!hasRange) return bad(file, L.line, who + " (" + lightTypeName(L.type) + ") needs a <range> (metres, > 0)");
+        if (!(L.range > 0.0))
+            return bad(file, at(rangeElement), who + ": <range> is " + formatNumber(L.range) + "; it must be more than 0 (metres)");
     }
-    if (L.type == LightType::Spot && (!hasCone || !(L.coneHalfAngleDeg > 0.0) || L.coneHalfAngleDeg > 90.0))
-        return bad(file, L.line, who + " needs a <coneAngle> (half-angle, degrees) in (0, 90]");
-    if (L.bias < 0 || L.slopeBias < 0 || L.filterRadius < 0)
-        return bad(file, L.line, who + ": bias, slopeBias and filterRadius must not be negative");
+    if (L.type == LightType::Spot) {
+        if (!hasCone) return bad(file, L.line, who + " (spot) needs a <coneAngle> (half-angle, degrees, in (0, 90])");
+        if (!(L.coneHalfAngleDeg > 0.0) || L.coneHalfAngleDeg > 90.0)
+            return bad(file, at(coneElement), who + ": <coneAngle> is " + formatNumber(L.coneHalfAngleDeg) +
+                                                  "; the half-angle must be more than 0 and at most 90 degrees");
+    }
+    for (const auto& [e, value] : distances)
+        if (*value < 0)
+            return bad(file, e->GetLineNum(), who + ": <" + e->Name() + "> is " + formatNumber(*value) +
+                                                  "; it must not be negative (metres)");
     return L;
 }
 
@@ -264,7 +284,8 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
                                                       formatNumber(limits::kMaxChunkSize) + "] m");
         } else if (n == "terrainTolerance") {
             s = parseDouble(file, e, st.terrainTolerance, limits::kMaxLength);
-            if (s && st.terrainTolerance < 0) return bad(file, e->GetLineNum(), "<terrainTolerance> must not be negative");
+            if (s && st.terrainTolerance < 0) return bad(file, e->GetLineNum(), "<terrainTolerance> is " + formatNumber(st.terrainTolerance) +
+                                                                           "; it must not be negative (metres)");
         } else if (n == "resourceRoot") {
             resourceRoot = trim(e->GetText());
         } else if (n == "neighbours") {
@@ -274,7 +295,8 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
                 char* end = nullptr;
                 long x = std::strtol(t, &end, 10);
                 if (end == t || *end || x < 0 || x > 64)
-                    return bad(file, e->GetLineNum(), std::string("<neighbours ") + a + "> expects 0..64");
+                    return bad(file, e->GetLineNum(), std::string("<neighbours ") + a + "=\"" + t +
+                                                          "\"> must be a whole number from 0 to 64");
                 v = int(x);
                 return Status::ok();
             };
@@ -287,7 +309,7 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
                 double d = 0;
                 s = parseDouble(file, e, d);
                 if (s && (d < 0 || d > 64 || d != std::floor(d)))
-                    return bad(file, e->GetLineNum(), "<neighbours> expects a whole number 0..64");
+                    return bad(file, e->GetLineNum(), "<neighbours> is " + formatNumber(d) + "; it must be a whole number from 0 to 64");
                 if (s) st.neighbours = Neighbours{int(d), int(d), int(d), int(d)};
             }
         } else if (n == "light") {
@@ -396,7 +418,9 @@ Expected<Mesh> loadModelResource(const std::string& path) {
          g = g->NextSiblingElement("primitiveGroup")) {
         int index = -1;
         if (g->QueryIntAttribute("index", &index) != tinyxml2::XML_SUCCESS || index < 0)
-            return bad(path, g->GetLineNum(), "<primitiveGroup> needs index=\"N\" (N >= 0)");
+            return bad(path, g->GetLineNum(),
+                       std::string("<primitiveGroup> needs index=\"N\" (a whole number, 0 or more); got ") +
+                           (g->Attribute("index") ? "index=\"" + std::string(g->Attribute("index")) + "\"" : "no index"));
         if (size_t(index) >= mesh->groups.size())
             return bad(path, g->GetLineNum(), "<primitiveGroup index=\"" + std::to_string(index) + "\"> but " + meshPath +
                                                   " has " + std::to_string(mesh->groups.size()) + " group(s)");
@@ -455,7 +479,8 @@ Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkS
     double minH = 0, maxH = 0;
     if (Status s = parseDouble(path, mn, minH, limits::kMaxLength); !s) return s.error();
     if (Status s = parseDouble(path, mx, maxH, limits::kMaxLength); !s) return s.error();
-    if (maxH < minH) return bad(path, mx->GetLineNum(), "<maxHeight> is below <minHeight>");
+    if (maxH < minH)
+        return bad(path, mx->GetLineNum(), "<maxHeight> " + formatNumber(maxH) + " is below <minHeight> " + formatNumber(minH));
     const std::string png = (fs::path(path).parent_path() / trim(he->GetText())).string();
 
     Expected<std::string> bytes = readRegularFile(png, "heightmap", ErrorKind::MissingResource, size_t(1) << 30);
@@ -519,7 +544,8 @@ bool loadOnce(std::map<std::string, Expected<std::shared_ptr<const T>>>& cache, 
         if (r) {
             it = cache.emplace(path, std::make_shared<const T>(std::move(*r))).first;
         } else {
-            diagnostics.push_back({r.error().file, r.error().line, r.error().message});
+            // Says what the bake does about it: the objects are named one by one below.
+            diagnostics.push_back({r.error().file, r.error().line, r.error().message + "; every object using it is skipped"});
             it = cache.emplace(path, r.error()).first;
         }
     }
@@ -584,6 +610,8 @@ Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resour
         if (de.path().extension() == ".chunk") files.push_back(de.path());
     if (ec) return makeError(ErrorKind::BadInput, spaceDir, 0, "cannot list the space directory: " + ec.message());
     std::sort(files.begin(), files.end());
+    if (files.empty())
+        return bad(spaceDir, 0, "the space has a space.xml but no chunk files (XXXXZZZZo.chunk beside it): nothing to bake");
     std::map<ChunkCoord, fs::path> named;
     for (const fs::path& p : files) {
         std::optional<ChunkCoord> c = parseChunkName(p.filename().string());
@@ -597,6 +625,13 @@ Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resour
             return bad(p.string(), 0, "names the same chunk as " + it->second.filename().string() + " (grid " +
                                           std::to_string(c->x) + ", " + std::to_string(c->z) +
                                           "); keep one of the two files");
+    }
+    if (named.empty()) {
+        std::string some;
+        for (size_t k = 0; k < files.size() && k < 3; ++k) some += (k ? ", " : "") + files[k].filename().string();
+        return bad(spaceDir, 0, "the space has no chunk files: " + std::to_string(files.size()) + " file(s) end in .chunk (" +
+                                    some + (files.size() > 3 ? ", ..." : "") +
+                                    "), but none is named XXXXZZZZo.chunk (16-bit hex grid x and z)");
     }
     for (const fs::path& p : files) {
         std::optional<ChunkCoord> c = parseChunkName(p.filename().string());

@@ -15,6 +15,7 @@ enum class ErrorKind {
     Io,               // writing failed (exit 4)
     Internal,         // a library (Embree, CGAL, GL) failed (exit 5)
     Busy,             // another process holds the lock on what this one would write (exit 6)
+    Interrupted,      // SIGINT or SIGTERM: stopped, temporary files removed (exit 128 + signal)
 };
 
 // A failure: which file, which line (0 when the file has no lines, e.g. binary data),

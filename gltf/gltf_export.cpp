@@ -9,6 +9,7 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -22,6 +23,7 @@
 #include "core/gltf_document.h"
 #include "core/results_file.h"
 #include "core/scene.h"
+#include "core/xml_message.h"
 #include "gltf/glb_writer.h"
 #include "gltf/gltf_import.h"
 
@@ -75,8 +77,9 @@ Expected<SpaceLink> readSpaceLink(const std::string& spaceDir) {
     Expected<std::string> text = readRegularFile(file, "space.xml");
     if (!text) return text.error();
     tinyxml2::XMLDocument doc;
-    if (doc.Parse(text->data(), text->size()) != tinyxml2::XML_SUCCESS || !doc.RootElement())
-        return makeError(ErrorKind::BadInput, file, doc.ErrorLineNum(), "malformed XML");
+    if (doc.Parse(text->data(), text->size()) != tinyxml2::XML_SUCCESS)
+        return makeError(ErrorKind::BadInput, file, doc.ErrorLineNum(), xmlParseProblem(doc));
+    if (!doc.RootElement()) return makeError(ErrorKind::BadInput, file, 0, "no XML element in it");
     SpaceLink link;
     const tinyxml2::XMLElement* source = doc.RootElement()->FirstChildElement("gltfSource");
     if (!source || !source->Attribute("identity"))
@@ -122,13 +125,15 @@ void writeAtomically(const std::string& path, const std::string& bytes) {
     const fs::path target(path);
     const fs::path temp = target.parent_path() / ("." + target.filename().string() + ".export-" + std::to_string(::getpid()));
     {
+        errno = 0;
         std::ofstream f(temp, std::ios::binary);
         f.write(bytes.data(), std::streamsize(bytes.size()));
         f.close();
         if (!f) {
+            const std::string why = errno ? errnoText(errno) : "write failed";
             std::error_code ec;
             fs::remove(temp, ec);
-            fail(path, "could not write (nothing written)", ErrorKind::Io);
+            fail(path, "could not write: " + why + " (nothing written)", ErrorKind::Io);
         }
     }
     std::error_code ec;

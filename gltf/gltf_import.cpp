@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -24,6 +25,7 @@
 #include <nlohmann/json.hpp>
 #include <tinyxml2.h>
 
+#include "core/file_read.h"
 #include "core/format.h"
 #include "core/gltf_document.h"
 #include "core/hash.h"
@@ -424,10 +426,13 @@ private:
     }
 
     static void writeFile(const fs::path& path, const std::string& bytes) {
+        errno = 0;
         std::ofstream f(path, std::ios::binary);
         f.write(bytes.data(), std::streamsize(bytes.size()));
         f.close();
-        if (!f) throw makeError(ErrorKind::Io, path.string(), 0, "could not write (nothing written)");
+        if (!f)
+            throw makeError(ErrorKind::Io, path.string(), 0,
+                            "could not write: " + (errno ? errnoText(errno) : std::string("write failed")) + " (nothing written)");
     }
 
     void writeSpace(const fs::path& dir) {

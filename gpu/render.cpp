@@ -6,6 +6,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/format.h"
+#include "core/png_write.h"
 #include "gpu/gl_api.h"
 #include "gpu/light_view.h"
 #include "gpu/render_picture.h"

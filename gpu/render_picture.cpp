@@ -1,11 +1,12 @@
 #include "gpu/render_picture.h"
 
+#include "core/png_write.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
 #include <glm/geometric.hpp>
-#include <png.h>
 
 namespace shadowcull::gpu {
 
@@ -122,31 +123,9 @@ RgbImage composePicture(const RenderedViews& rv, const std::vector<std::string>&
     return img;
 }
 
+// libpng's own stderr lines become the tool's messages (core/png_write.h).
 Status writePng(const std::string& path, const RgbImage& image) {
-    FILE* f = std::fopen(path.c_str(), "wb");
-    if (!f) return makeError(ErrorKind::Io, path, 0, "cannot open for writing");
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
-    png_infop info = png ? png_create_info_struct(png) : nullptr;
-    if (!png || !info) {
-        png_destroy_write_struct(&png, &info);
-        std::fclose(f);
-        return makeError(ErrorKind::Io, path, 0, "libpng could not start");
-    }
-    if (setjmp(png_jmpbuf(png))) {
-        png_destroy_write_struct(&png, &info);
-        std::fclose(f);
-        return makeError(ErrorKind::Io, path, 0, "writing the PNG failed");
-    }
-    png_init_io(png, f);
-    png_set_IHDR(png, info, png_uint_32(image.width()), png_uint_32(image.height()), 8, PNG_COLOR_TYPE_RGB,
-                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-    png_write_info(png, info);
-    for (int y = 0; y < image.height(); ++y)
-        png_write_row(png, const_cast<png_bytep>(&image.pixels()[size_t(y) * size_t(image.width()) * 3]));
-    png_write_end(png, nullptr);
-    png_destroy_write_struct(&png, &info);
-    if (std::fclose(f) != 0) return makeError(ErrorKind::Io, path, 0, "closing the PNG failed");
-    return Status::ok();
+    return writeRgbPng(path, image.width(), image.height(), image.pixels());
 }
 
 }  // namespace shadowcull::gpu

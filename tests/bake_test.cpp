@@ -284,7 +284,7 @@ struct BadInputCase {
 TEST(Cli, BadInputIsReportedWithFileLineAndExitCode) {
     const std::vector<BadInputCase> cases = {
         {"malformed chunk", [](const fs::path& d) { writeText(d / "00000000o.chunk", "<chunk>\n<model>\n</chunk>\n"); }, 3,
-         "00000000o.chunk:2: malformed XML"},
+         "00000000o.chunk:2: not well-formed XML: the element <model> that starts here is closed by an end tag of another name"},
         {"unknown light type",
          [](const fs::path& d) { writeText(d / "space.xml", "<space>\n<light>\n<type> area </type>\n</light>\n</space>\n"); }, 3,
          "space.xml:3: unknown light type 'area'"},

@@ -60,14 +60,6 @@ std::string portable(std::string text, const fs::path& dir) {
     return text;
 }
 
-// Compares with tests/golden/NAME. SHADOWCULL_UPDATE_GOLDEN=1 rewrites the file instead.
-void expectGolden(const std::string& name, const std::string& actual) {
-    const fs::path golden = fs::path(SHADOWCULL_SOURCE_DIR) / "tests" / "golden" / name;
-    if (const char* u = std::getenv("SHADOWCULL_UPDATE_GOLDEN"); u && std::string(u) == "1") writeText(golden, actual);
-    ASSERT_TRUE(fs::exists(golden)) << golden << " is missing (run with SHADOWCULL_UPDATE_GOLDEN=1 to create it)";
-    EXPECT_EQ(readText(golden), actual) << "differs from " << golden;
-}
-
 // Floating cubes (nothing below them, so every bit is truly 0) plus a lamp above them.
 // With range 5 the reach stage proves the lamp's bits 0; with range 30 it cannot, and the
 // shadow volumes prove them. No witness ray anywhere: the reports hold no float hit

@@ -179,6 +179,11 @@ TEST(GltfImport, ExportKeepsEverythingElse) {
                      q(dir / "scene.glb"));
     EXPECT_NE(r.code, 0);
     EXPECT_EQ(readGltf(dir / "scene.glb").doc, before.doc);
+    // A copy that cannot be written says why (it said only "could not write").
+    r = cli(dir, "export " + q(dir / "space") + " " + q(dir / "results.json") + " --gltf " + q(dir / "scene.glb") + " --out " +
+                     q(dir / "no" / "such" / "x.glb"));
+    EXPECT_EQ(r.code, 4) << r.err;
+    EXPECT_NE(r.err.find("x.glb: could not write: no such file or directory (nothing written)"), std::string::npos) << r.err;
 }
 
 TEST(GltfImport, ExportRefusesAnotherScene) {

@@ -142,7 +142,7 @@ TEST(HostileInput, OutputsNeverReplaceInputs) {
              {"bake " + s + " --results " + chunk, "--results"},
              {"bake " + s + " --results '" + (dir / "link.obj").string() + "'", "--results"},  // a link to a mesh
              {"bake " + s + " --results '" + (space / "models/tree.mtl").string() + "'", "--results"},
-             {"render " + s + " --chunk 00000000o --out " + chunk, "--out"},
+             {"render " + s + " --chunk 00000000o --light 1 --out " + chunk, "--out"},
              {"diff " + s + " " + s + " --html '" + (space / "space.xml").string() + "'", "--html"},
              {"diff " + s + " " + s + " --json " + chunk, "--json"},
              {"sweep " + s + " --quick --no-gpu --csv '" + (space / "terrain/00000000.png").string() + "'", "--csv"}}) {

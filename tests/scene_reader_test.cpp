@@ -183,17 +183,20 @@ TEST(SpaceReader, BadInputNamesFileAndLine) {
         {"unknown type", spaceWithLight("    <type> area </type>"), 3, "unknown light type 'area'"},
         {"nan direction", spaceWithLight("    <type> directional </type>\n    <direction> nan -1 0 </direction>"), 4,
          "non-finite"},
-        {"zero direction", spaceWithLight("    <type> directional </type>\n    <direction> 0 0 0 </direction>"), 2,
-         "zero <direction>"},
+        {"zero direction", spaceWithLight("    <type> directional </type>\n    <direction> 0 0 0 </direction>"), 4,
+         "<direction> '0 0 0' has no length"},
+        {"direction beyond a double", spaceWithLight("    <type> directional </type>\n    <direction> 1e308 -1e309 0 </direction>"), 4,
+         "<direction> value -1e309 is too large to be a number here"},
         {"point without range", spaceWithLight("    <type> point </type>\n    <position> 0 0 0 </position>"), 2,
          "<range>"},
         {"spot cone too wide",
          spaceWithLight("    <type> spot </type><position>0 0 0</position><direction>0 -1 0</direction>\n"
                         "    <range>5</range><coneAngle>120</coneAngle>"),
-         2, "coneAngle"},
+         4, "<coneAngle> is 120; the half-angle must be more than 0 and at most 90 degrees"},
         {"bad number", "<space>\n<chunkSize> 1O0 </chunkSize>\n</space>", 2, "trailing text"},
         {"negative chunk", "<space>\n<chunkSize> -5 </chunkSize>\n</space>", 2, "outside the accepted range [1, 100000]"},
-        {"malformed", "<space>\n<chunkSize> 100 </chunkSize>\n<light>\n</space>", 3, "malformed XML"},  // the unclosed element
+        {"malformed", "<space>\n<chunkSize> 100 </chunkSize>\n<light>\n</space>", 3,
+         "not well-formed XML: the element <light> that starts here is closed by an end tag of another name"},
         {"33 lights", many, 34, "more than 32 lights"},
     };
     for (const BadSpaceCase& c : cases) {
@@ -206,6 +209,19 @@ TEST(SpaceReader, BadInputNamesFileAndLine) {
         EXPECT_NE(s.error().what().find(c.words), std::string::npos) << c.name << ": " << s.error().what();
         EXPECT_NE(s.error().what().find("space.xml"), std::string::npos) << c.name;
     }
+}
+
+// Components near the largest double are a direction like any other (issue 15: it was
+// reported as a zero direction): scaled by the largest component before normalising.
+TEST(SpaceReader, HugeDirectionComponentsAreADirection) {
+    fs::path dir = freshTestDir();
+    writeText(dir / "space.xml", spaceWithLight("    <type> directional </type>\n    <direction> 1e308 -1e308 1e308 </direction>"));
+    auto s = readSpaceSettings(dir.string(), "");
+    ASSERT_TRUE(s) << s.error().what();
+    const double k = 1.0 / std::sqrt(3.0);
+    EXPECT_NEAR(s->lights[0].direction.x, k, 1e-15);
+    EXPECT_NEAR(s->lights[0].direction.y, -k, 1e-15);
+    EXPECT_NEAR(s->lights[0].direction.z, k, 1e-15);
 }
 
 TEST(SpaceReader, ThirtyTwoLightsAreFine) {

@@ -66,6 +66,17 @@ inline int runCli(const std::string& args, const std::filesystem::path& outFile,
 }
 #endif
 
+#ifdef SHADOWCULL_SOURCE_DIR
+// Compares `actual` with tests/golden/NAME. SHADOWCULL_UPDATE_GOLDEN=1 rewrites the file
+// instead (then read the diff before committing it).
+inline void expectGolden(const std::string& name, const std::string& actual) {
+    const std::filesystem::path golden = std::filesystem::path(SHADOWCULL_SOURCE_DIR) / "tests" / "golden" / name;
+    if (const char* u = std::getenv("SHADOWCULL_UPDATE_GOLDEN"); u && std::string(u) == "1") writeText(golden, actual);
+    ASSERT_TRUE(std::filesystem::exists(golden)) << golden << " is missing (run with SHADOWCULL_UPDATE_GOLDEN=1 to create it)";
+    EXPECT_EQ(readText(golden), actual) << "differs from " << golden;
+}
+#endif
+
 // Every *.chunk regular file of `dir` (never a FIFO a test made): name -> bytes.
 inline std::map<std::string, std::string> chunkTexts(const std::filesystem::path& dir) {
     std::map<std::string, std::string> m;
