@@ -94,6 +94,19 @@ struct ExactFrustum::Impl {
     FT nearK;
     double dmax = 0.0;      // point lights: upper bound of |p - L| over the caster
     double nearDilate = 0;  // dilation * |nearN|, rounded up
+    // Sheets (edge-on casters, directional): the caster's edges the light enters by, in
+    // the sheet's plane. Each is an open half-space completed per query like the near one:
+    //   m . (x - e) - beta * (m . d) + dilate > 0, with m the edge's normal into the caster
+    //   and m . d > 0,
+    // so the sheet is exactly {p + s d : p in t, s > beta} in its plane (the two lines
+    // along d bound it sideways), not the looser "deeper than the nearest vertex".
+    struct Entry {
+        Vector m;  // inward (-outward) in-plane normal of the edge
+        Point e;   // a point of the edge
+        FT mDotD;  // m . d > 0
+        double dilate = 0;
+    };
+    std::vector<Entry> entries;
 };
 
 namespace {
@@ -123,6 +136,21 @@ bool buildSheet(ExactFrustum::Impl& m, const Point (&v)[3], const Vector& d, dou
     m.nearO = v[nearest];
     m.nearK = d * d;
     m.nearDilate = dilation > 0 ? dilation * normUpper(d) : 0.0;
+    // The edges the light enters the caster by: in-plane normal m of edge (p, q) pointing
+    // into the caster (towards the third vertex; for a caster without area, towards where
+    // the light goes); an edge with m . d > 0 faces the light, and every point p + s d of
+    // the sheet lies on its inner side, beyond it by more than beta along d.
+    for (int k = 0; k < 3; ++k) {
+        const Point &p = v[k], &q = v[(k + 1) % 3], &r = v[(k + 2) % 3];
+        if (p == q) continue;
+        Vector mk = CGAL::cross_product(n, q - p);  // in the plane, across the edge
+        const CGAL::Sign toR = CGAL::sign(mk * (r - p));
+        if (toR == CGAL::NEGATIVE) mk = -mk;
+        else if (toR == CGAL::ZERO && CGAL::sign(mk * d) == CGAL::NEGATIVE) mk = -mk;  // no area: towards d
+        const FT md = mk * d;
+        if (CGAL::sign(md) != CGAL::POSITIVE) continue;  // along the light or facing away: no bound
+        m.entries.push_back({mk, p, md, dilation > 0 ? dilation * normUpper(mk) : 0.0});
+    }
     return true;
 }
 
@@ -202,11 +230,34 @@ bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3
     const FT factor = m.directional ? FT(beta) : FT(1) + FT(beta) / FT(m.dmax);
     const HalfSpace nearSide{m.nearN, m.nearO, FT(m.nearDilate) - factor * m.nearK};
     bool reached = false;
-    for (const Point& p : poly)
-        if (CGAL::sign(nearSide(p)) == CGAL::POSITIVE) {
-            reached = true;
-            break;
+    if (m.entries.empty()) {
+        for (const Point& p : poly)
+            if (CGAL::sign(nearSide(p)) == CGAL::POSITIVE) {
+                reached = true;
+                break;
+            }
+    } else {
+        // Several open half-spaces (the near one and the entry edges): the polygon clipped
+        // by their closures holds a point strictly inside all of them exactly when, for
+        // each, some vertex is strictly inside (then the vertices' mean is inside all).
+        std::vector<HalfSpace> opens = {nearSide};
+        for (const Impl::Entry& e : m.entries) opens.push_back(HalfSpace{e.m, e.e, FT(e.dilate) - FT(beta) * e.mDotD});
+        std::vector<Point> inner = poly;
+        for (const HalfSpace& h : opens) {
+            clip(inner, h);
+            if (inner.empty()) break;
         }
+        reached = !inner.empty();
+        for (size_t i = 0; reached && i < opens.size(); ++i) {
+            bool strictly = false;
+            for (const Point& p : inner)
+                if (CGAL::sign(opens[i](p)) == CGAL::POSITIVE) {
+                    strictly = true;
+                    break;
+                }
+            reached = strictly;
+        }
+    }
     if (reached && reachedPart) {
         glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
         for (const Point& p : poly) {
