@@ -47,7 +47,11 @@ std::vector<std::string> chunkFiles(const std::string& spaceDir) {
 
 void explainBit(const Decision& d, std::ostream& out) {
     switch (d.verdict) {
-        case Verdict::Undecided: out << "undecided, kept as 1 (no stage could decide)\n"; return;
+        case Verdict::Undecided:
+            out << "undecided, kept as 1 (no stage could decide)\n";
+            if (d.notes().empty()) out << "    no stage recorded what it saw\n";
+            for (const StageNote& n : d.notes()) out << "    " << n.stage << ": " << n.text << "\n";
+            return;
         case Verdict::Culled: out << "culled, stage " << d.stage << "\n    proof: " << d.reason() << "\n"; return;
         case Verdict::Kept: break;
     }

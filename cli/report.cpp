@@ -126,6 +126,7 @@ results::ResultsFile resultsFile(const BakeResult& r) {
                     b.verdict = verdictName(d.verdict);
                     b.stage = std::string(d.stage);
                     b.reason = std::string(d.reason());
+                    for (const StageNote& n : d.notes()) b.notes.emplace_back(std::string(n.stage), n.text);
                     if (const Witness* w = d.witness())
                     {
                         b.witness = results::WitnessRecord{w->wsOrigin, w->wsDirection, w->wsP, w->wsQ, w->receiver, std::nullopt};

@@ -39,6 +39,11 @@ json bitJson(const BitRecord& b) {
     // Left out when empty, as the bake always has: an undecided bit has neither.
     if (!b.stage.empty()) j["stage"] = b.stage;
     if (!b.reason.empty()) j["reason"] = b.reason;
+    if (!b.notes.empty()) {
+        json notes = json::array();
+        for (const auto& [stage, text] : b.notes) notes.push_back({{"stage", stage}, {"saw", text}});
+        j["notes"] = std::move(notes);
+    }
     if (b.witness) {
         const WitnessRecord& w = *b.witness;
         j["witness"] = {{"origin", vecJson(w.origin)}, {"direction", vecJson(w.direction)},
@@ -139,6 +144,8 @@ BitRecord readBit(const json& jl, int light) {
     b.verdict = jl.at("verdict").get<std::string>();
     b.stage = jl.value("stage", std::string());
     b.reason = jl.value("reason", std::string());
+    if (jl.contains("notes") && jl["notes"].is_array())
+        for (const json& n : jl["notes"]) b.notes.emplace_back(n.value("stage", std::string()), n.value("saw", std::string()));
     if (jl.contains("witness")) {
         const json& w = jl["witness"];
         b.witness = WitnessRecord{readVec(w.at("origin")), readVec(w.at("direction")), readVec(w.at("p")),

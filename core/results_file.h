@@ -39,6 +39,8 @@ struct BitRecord {
     int bit = 1;    // as written: 0 only when proved
     std::string verdict, stage, reason;  // verdict: "kept", "culled" or "undecided"
     std::optional<WitnessRecord> witness;
+    // Undecided bits: what each stage that looked saw ({stage, text}; "notes" in the file).
+    std::vector<std::pair<std::string, std::string>> notes;
 };
 
 struct GroupRecord {

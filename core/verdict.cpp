@@ -30,7 +30,19 @@ void decideWith(Decision& d, Verdict v, const char* stage, const char* staticRea
     d.verdict = v;
     d.stage = stage;
     d.staticReason_ = staticReason;
-    d.evidence_ = std::move(evidence);
+    d.evidence_ = std::move(evidence);  // the notes were about why it was not decided yet
+}
+
+void addNote(Decision& d, const char* stage, std::string text) {
+    if (d.verdict != Verdict::Undecided) return;
+    auto e = d.evidence_ ? std::make_shared<Evidence>(*d.evidence_) : std::make_shared<Evidence>();
+    e->notes.push_back(StageNote{stage, std::move(text)});
+    d.evidence_ = std::move(e);
+}
+
+const std::vector<StageNote>& Decision::notes() const {
+    static const std::vector<StageNote> none;
+    return evidence_ ? evidence_->notes : none;
 }
 
 void decide(Decision& d, Verdict v, const char* stage, std::string reason, std::optional<Witness> witness) {

@@ -35,9 +35,17 @@ struct Witness {
 
 // What a decision rests on beyond a fixed sentence: a reason with numbers in it, or a
 // witness ray. Kept on the heap, only for the decisions that have one.
+// What a stage saw on a bit it could not decide (the receiver the shadow volume could not
+// exclude, the pixels that passed), so a user can tell a hard case from a missing proof.
+struct StageNote {
+    std::string_view stage;  // static text (Stage::name())
+    std::string text;
+};
+
 struct Evidence {
     std::string reason;
     std::optional<Witness> witness;
+    std::vector<StageNote> notes;  // undecided bits only: deciding a bit replaces its evidence
 };
 
 // One bit's decision. Small (48 bytes), because a bake keeps one per (group, light) of the
@@ -54,11 +62,14 @@ public:
     }
     // The ray that proves a 1, when a stage found one.
     const Witness* witness() const { return evidence_ && evidence_->witness ? &*evidence_->witness : nullptr; }
+    // Notes of the stages that looked at the bit and left it undecided (none once decided).
+    const std::vector<StageNote>& notes() const;
 
 private:
     const char* staticReason_ = nullptr;
     std::shared_ptr<const Evidence> evidence_;  // shared: copies of a verdict table share it
     friend void decideWith(Decision&, Verdict, const char*, const char*, std::shared_ptr<const Evidence>);
+    friend void addNote(Decision&, const char*, std::string);
 };
 
 // Verdicts of one centre-chunk object (model or terrain), one row per group.
@@ -102,6 +113,8 @@ void decide(Decision& d, Verdict v, const char* stage, std::string reason, std::
 void decide(Decision& d, Verdict v, const char* stage, std::shared_ptr<const Evidence> shared);
 
 void decideWith(Decision& d, Verdict v, const char* stage, const char* staticReason, std::shared_ptr<const Evidence> evidence);
+// Records what `stage` saw on a bit it leaves undecided (ignored on a decided bit).
+void addNote(Decision& d, const char* stage, std::string text);
 
 template <size_t N>
 void decide(Decision& d, Verdict v, const char* stage, const char (&reason)[N]) {

@@ -133,12 +133,12 @@ private:
     mutable std::vector<std::atomic<std::atomic<double>*>> tables_;
 };
 
-std::string worldBox(const Aabb& b, const glm::dvec3& origin) {
-    auto v = [](const glm::dvec3& p) {
-        return "(" + formatNumber(p.x) + " " + formatNumber(p.y) + " " + formatNumber(p.z) + ")";
-    };
-    return v(b.min + origin) + " .. " + v(b.max + origin);
+std::string worldPoint(const glm::dvec3& ls, const glm::dvec3& origin) {
+    const glm::dvec3 p = ls + origin;
+    return "(" + formatNumber(p.x) + " " + formatNumber(p.y) + " " + formatNumber(p.z) + ")";
 }
+
+std::string worldBox(const Aabb& b, const glm::dvec3& origin) { return worldPoint(b.min, origin) + " .. " + worldPoint(b.max, origin); }
 
 }  // namespace
 
@@ -252,6 +252,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 };
                 // One caster triangle: true when some receiver reaches its frustum (a candidate).
                 bool candidate = false;
+                std::string seen;  // the candidate, for the bit's note
                 auto castsOnSomething = [&](const Triangle& t) {
                     // Built on the first receiver that passes the broad phase and the rules:
                     // most caster triangles of a dense mesh never need one.
@@ -272,6 +273,15 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         // The terrain rule on the part of the receiver the shadow reaches: a
                         // rock half in the ground receives only with its part above ground.
                         candidate = !(window.hasTerrain && !r.terrain && underTerrain(window, part, margin));
+                        if (candidate) {
+                            const WindowObject& ro = window.objects[k];
+                            auto corner = [&](const glm::dvec3& p) { return worldPoint(p, window.wsOrigin); };
+                            seen = "could not exclude " + ro.label + " group " + std::to_string(ro.mesh->triangleGroup[tri]) +
+                                   " (triangle " + std::to_string(tri) + "): the shadow volume of the caster triangle " +
+                                   corner(t[0]) + " " + corner(t[1]) + " " + corner(t[2]) +
+                                   " reaches it more than the bias behind, within " + worldBox(Aabb{part[0], part[1]}, window.wsOrigin) +
+                                   " (a candidate receiver: the next stages look for a witness ray or an occluder)";
+                        }
                         return candidate;
                     };
                     // Point and spot lights: the whole window. The receiver rules exclude only
@@ -315,7 +325,10 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     for (const Triangle& t : casters)
                         if (castsOnSomething(t)) break;
                 }
-                if (candidate) continue;
+                if (candidate) {
+                    if (d.verdict == Verdict::Undecided) addNote(d, "geometry", std::move(seen));
+                    continue;
+                }
                 if (d.verdict == Verdict::Kept) {  // cross-check mode: a proof against a witness
                     if (!contradiction.exchange(true))
                         contradictionAt = wo.label + " group " + std::to_string(task.group) + " light " + std::to_string(l + 1);

@@ -59,6 +59,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/float_mode.h"
+#include "core/format.h"
 #include "core/light_reach.h"
 #include "gpu/conservative.h"
 #include "gpu/gl_api.h"
@@ -590,7 +591,15 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     std::vector<GroupPixels> queries;
     for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
         const ObjectVerdicts& ov = cv.objects[oi];
-        if (ov.windowObject < 0 || (ov.terrain && !options_.includeTerrain)) continue;
+        if (ov.windowObject < 0) continue;
+        if (ov.terrain && !options_.includeTerrain) {
+            // Said on the bit, so that a terrain left undecided is not read as a failed proof.
+            for (int g = 0; g < ov.groupCount; ++g)
+                addNote(cv.at(oi, g, l), name(),
+                        "not examined: terrains are left to the other stages (a continuous surface never passes this "
+                        "stage's test; --gpu-terrain examines them)");
+            continue;
+        }
         for (int g = 0; g < ov.groupCount; ++g) {
             if (cv.at(oi, g, l).verdict != Verdict::Undecided) continue;
             auto& q = queryOf[size_t(ov.windowObject)];
@@ -1113,6 +1122,22 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
                 decide(d, Verdict::Culled, name(),
                        "nothing behind: no receiver deeper than the bias behind any pixel where the group may be lit "
                        "(conservative rasterisation, " + at + ")");
+        }
+        if (gp.passedSamples > 0) {
+            // Left undecided: say what passed and where (the raycast stage then searches there).
+            std::string seen = std::to_string(gp.passedSamples) + " of " + std::to_string(gp.litSamples) +
+                               " samples where the group may be lit had a receiver possibly more than the bias behind (" +
+                               at + ")";
+            if (!gp.pixels.empty()) {
+                const PassedPixel& p = gp.pixels.front();
+                const glm::dvec3 ws = p.lsPoint + w.wsOrigin;
+                seen += "; e.g. view " + std::to_string(p.view) + " pixel (" + std::to_string(p.px) + ", " +
+                        std::to_string(p.py) + "): the light's ray through (" + formatNumber(ws.x) + " " + formatNumber(ws.y) +
+                        " " + formatNumber(ws.z) + ") along (" + formatNumber(p.lsDirection.x) + " " +
+                        formatNumber(p.lsDirection.y) + " " + formatNumber(p.lsDirection.z) + "), " +
+                        std::to_string(gp.pixels.size()) + " such pixels kept";
+            }
+            addNote(cv.at(gp.object, gp.group, l), name(), std::move(seen));
         }
         groups_.push_back(std::move(gp));
     }

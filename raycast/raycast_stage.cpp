@@ -375,12 +375,14 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                 // closest hits examine the rest in order until one is a witness.
                 const std::vector<glm::dvec3>& targets = task.targets;
                 bool found = false;
+                size_t lit = 0;
                 for (size_t b = 0; b < targets.size() && !found; b += 16) {
                     const int count = int(std::min<size_t>(16, targets.size() - b));
                     bool clear[16];
                     tracer.clearSegments(L, object, &targets[b], count, clear, &localRays);
                     for (int k = 0; k < count && !found; ++k) {
                         if (!clear[k]) continue;
+                        ++lit;
                         if (std::optional<Witness> wit =
                                 tracer.tryRay(L, object, uint32_t(task.group), targets[b + size_t(k)], &localRays)) {
                             decide(d, Verdict::Kept, "raycast", reason, std::move(wit));
@@ -389,6 +391,11 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                         }
                     }
                 }
+                if (!found)
+                    addNote(d, "raycast",
+                            "no witness: of " + std::to_string(targets.size()) + " points on the group, " + std::to_string(lit) +
+                                " are lit (the light's segment to them is clear), and no ray through them meets a "
+                                "receiver more than the bias behind");
             }
             rays += localRays;
         });

@@ -7,6 +7,7 @@
 
 #include "cli/explain.h"
 #include "cli/pipeline.h"
+#include "tests/support/sample_space.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 
@@ -60,6 +61,22 @@ TEST(Explain, CulledByGeometryShowsTheProof) {
         has(r.out,
             "light 1 'sun' (directional): bit 0, culled, stage geometry\n    proof: no receiver in the shadow volume"))
         << r.out;
+}
+
+// An undecided bit says what each stage saw: on the sample, the centre chunk's terrain
+// under the sun (a real hard case: a candidate receiver, no witness, and a stage that
+// does not examine terrains), so a user can tell it from a proof that is missing.
+TEST(Explain, UndecidedBitSaysWhatEachStageSaw) {
+    const SpaceBuilder b = sampleSpace();
+    const auto where = b.locateObjects();
+    const ExplainRun r = explain(b, "00000000o", "9", 1);
+    ASSERT_EQ(r.code, cli::kExitOk) << r.err;
+    ASSERT_TRUE(has(r.out, "terrain #9")) << r.out;
+    EXPECT_TRUE(has(r.out, "light 1 'sun' (directional): bit 1, undecided, kept as 1 (no stage could decide)\n")) << r.out;
+    EXPECT_TRUE(has(r.out, "    raycast: no witness: of ")) << r.out;
+    EXPECT_TRUE(has(r.out, "    geometry: could not exclude 00000000o.chunk model #")) << r.out;
+    EXPECT_TRUE(has(r.out, "reaches it more than the bias behind, within (")) << r.out;
+    EXPECT_TRUE(has(r.out, "    gpu: not examined: terrains")) << r.out;
 }
 
 // The far cube, by element index (models come first in the chunk file), one light only.
