@@ -1,4 +1,6 @@
 #include "cli/diff.h"
+
+#include "core/chunk_writer.h"
 #include "cli/diff_model.h"
 #include "cli/output_guard.h"
 #include "core/file_read.h"
@@ -414,12 +416,6 @@ private:
 // ---------------------------------------------------------------------------------------
 // Writing
 
-bool writeReport(const std::string& path, const std::string& text) {
-    std::ofstream f(path, std::ios::binary);
-    f << text;
-    f.close();
-    return bool(f);
-}
 
 }  // namespace
 
@@ -441,8 +437,9 @@ int runDiff(const DiffOptions& opt, std::ostream& out, std::ostream& err) {
     out << textReport(a, b, c);
     for (const auto& [path, text] : {std::pair{opt.htmlPath, &htmlReport}, std::pair{opt.jsonPath, &jsonReport}}) {
         if (path.empty()) continue;
-        if (!writeReport(path, text(a, b, c))) {
-            err << "shadowcull: error: " << path << ": cannot write the report\n";
+        // Written whole or not at all; a failure says why.
+        if (Status s = writeFileAtomic(path, text(a, b, c)); !s) {
+            err << "shadowcull: error: " << s.error().what() << "; the report is printed above\n";
             return kExitIo;
         }
     }

@@ -1,9 +1,13 @@
 #include "cli/render_command.h"
 
+#include <filesystem>
+
 #include "cli/output_guard.h"
 #include "gpu/render.h"
 
 namespace shadowcull::cli {
+
+namespace fs = std::filesystem;
 
 int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err) {
     std::optional<ChunkCoord> c = parseChunkArgument(options.chunk);
@@ -21,6 +25,15 @@ int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err
     if (Status s = refuseInputAsOutput(options.outPath, cb->space->inputFiles(), "--out"); !s) {
         err << "shadowcull: error: " << s.error().what() << "\n";
         return exitCodeFor(s.error().kind);
+    }
+    const std::vector<Light>& lights = cb->window.lsLights;
+    if (options.light < 1 || size_t(options.light) > lights.size()) {
+        std::string names;
+        for (size_t k = 0; k < lights.size(); ++k) names += (k ? ", " : "") + std::to_string(k + 1) + " '" + lights[k].name + "'";
+        err << "shadowcull: error: --light " << options.light << ": " << (fs::path(bake.spaceDir) / "space.xml").string()
+            << " has " << lights.size() << (lights.size() == 1 ? " light" : " lights") << " (" << names
+            << "); nothing was written\n";
+        return kExitUsage;
     }
     gpu::RenderRequest rq;
     rq.light = options.light - 1;

@@ -1,4 +1,6 @@
 #include "cli/sweep.h"
+
+#include "core/chunk_writer.h"
 #include "cli/output_guard.h"
 
 #include <algorithm>
@@ -150,27 +152,25 @@ int reportSweep(const SweepOptions& options, const std::vector<SweepRow>& rows, 
     out << "\nReference: every analytic stage (GPU confirmation at 2048 px) at " << options.referenceSamples
         << " samples per group. False cull: written 0 where the reference has a witness. False keep: written 1 where "
            "the reference proved 0. Bits the reference could not decide are counted apart.\n";
+    // Written whole or not at all (a temporary beside it, renamed); a failure says why.
     if (!options.csvPath.empty()) {
-        std::ofstream csv(options.csvPath, std::ios::binary);
+        std::ostringstream csv;
         csv << "setting,seconds,bits,written0,written1,false_culls,false_keeps,reference_undecided\n";
         for (const SweepRow& r : rows) {
             std::snprintf(buf, sizeof buf, "%.6f", r.seconds);
             csv << csvEscape(r.setting) << "," << buf << "," << r.bits << "," << r.written0 << "," << r.written1 << ","
                 << r.falseCulls << "," << r.falseKeeps << "," << r.referenceUndecided << "\n";
         }
-        if (!csv) {
-            err << "shadowcull: error: " << options.csvPath << ": cannot write\n";
+        if (Status s = writeFileAtomic(options.csvPath, csv.str()); !s) {
+            err << "shadowcull: error: " << s.error().what() << "; the sweep's figures are printed above\n";
             return kExitIo;
         }
     }
-    if (!options.svgPath.empty()) {
-        std::ofstream f(options.svgPath, std::ios::binary);
-        f << sweepSvg(rows);
-        if (!f) {
-            err << "shadowcull: error: " << options.svgPath << ": cannot write\n";
+    if (!options.svgPath.empty())
+        if (Status s = writeFileAtomic(options.svgPath, sweepSvg(rows)); !s) {
+            err << "shadowcull: error: " << s.error().what() << "; the sweep's figures are printed above\n";
             return kExitIo;
         }
-    }
     return kExitOk;
 }
 

@@ -161,6 +161,33 @@ TEST(Messages, OptionErrorsGiveTheRangeAndTheValue) {
     EXPECT_NE(readText(dir / "e").find("Run 'shadowcull bake --help'"), std::string::npos) << readText(dir / "e");
 }
 
+// Reports that cannot be written say why (and that the figures were printed), and a light
+// the space does not have is named with the space's lights.
+TEST(Messages, ReportsAndLightsSayWhyAndWhat) {
+    const fs::path dir = freshTestDir();
+    const std::string sample = std::string(SHADOWCULL_SOURCE_DIR) + "/data/sample";
+    ASSERT_EQ(runCli("bake '" + sample + "' --dry-run --quiet --stages raycast --results '" + (dir / "r.json").string() + "'",
+                     dir / "o", dir / "e"),
+              0)
+        << readText(dir / "e");
+    const std::string missing = (dir / "no-such-dir" / "report.html").string();
+    EXPECT_EQ(runCli("diff '" + (dir / "r.json").string() + "' '" + (dir / "r.json").string() + "' --html '" + missing + "'",
+                     dir / "o", dir / "e"),
+              4);
+    std::string err = readText(dir / "e");
+    EXPECT_NE(err.find("report.html"), std::string::npos) << err;
+    EXPECT_NE(err.find("No such file or directory"), std::string::npos) << err;
+    EXPECT_NE(err.find("the report is printed above"), std::string::npos) << err;
+    EXPECT_EQ(runCli("render '" + sample + "' --chunk 00000000o --light 7 --out '" + (dir / "x.png").string() + "'", dir / "o",
+                     dir / "e"),
+              2);
+    err = readText(dir / "e");
+    EXPECT_NE(err.find("--light 7: " + sample + "/space.xml has 3 lights (1 'sun', 2 'lamp', 3 'torch'); nothing was written"),
+              std::string::npos)
+        << err;
+    EXPECT_FALSE(fs::exists(dir / "x.png"));
+}
+
 // --help of every command, compared with tests/golden/help.txt: defaults (samples 256,
 // resolution 1024, ...) and exit codes. After changing an option, regenerate with
 //   SHADOWCULL_UPDATE_GOLDEN=1 build/bin/shadowcull_tests --gtest_filter='Messages.HelpMatchesGolden'
