@@ -132,8 +132,13 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
                     wo.flipsWinding = o.transform.determinant() < 0;
                     for (const PrimitiveGroup& g : wo.mesh->groups) w.hasAlphaTested |= g.alphaTested;
                 }
+                // Every vertex a triangle uses, mapped once (a dense mesh's vertices are shared
+                // by ~6 triangles): the same box as mapping each triangle's corners.
+                std::vector<char> used(wo.mesh->positions.size(), 0);
                 for (const auto& tri : wo.mesh->triangles)
-                    for (uint32_t v : tri) wo.lsBounds.extend(wo.lsTransform.apply(wo.mesh->positions[v]));
+                    for (uint32_t v : tri) used[v] = 1;
+                for (size_t v = 0; v < used.size(); ++v)
+                    if (used[v]) wo.lsBounds.extend(wo.lsTransform.apply(wo.mesh->positions[v]));
                 if (!wo.lsBounds.empty()) {
                     w.lsBounds.extend(wo.lsBounds);
                     if (wo.centre) w.lsCentreBounds.extend(wo.lsBounds);

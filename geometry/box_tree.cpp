@@ -37,6 +37,7 @@ BoxTree::BoxTree(const std::vector<Aabb>& boxes) {
             Node& n = t.nodes_[node];
             n.box = box;
             n.items = count;
+            n.begin = first;
             if (count <= kLeafSize) {
                 n.first = first;
                 n.count = count;

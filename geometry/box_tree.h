@@ -7,12 +7,15 @@
 // box it was asked about could hold one): the tree only ever skips what it says cannot.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <mutex>
 #include <unordered_map>
 #include <unordered_set>
 #include <vector>
+
+#include <tbb/parallel_invoke.h>
 
 #include "core/mesh.h"
 #include "core/window.h"
@@ -37,9 +40,36 @@ public:
     bool visitNodes(const Pred& mayHold, const Leaf& leaf) const {
         return walk<false>(mayHold, leaf);
     }
+    static constexpr uint32_t kNone = 0xffffffffu;
+    // As visitNodes, in parallel over subtrees of at least `parallelAbove` items (TBB), for a
+    // search that wants the first item in depth-first order that passes: leaf(index,
+    // position) gets the item's position in that order and returns nothing; the caller
+    // lowers `first` (atomically) when an item passes, and subtrees wholly after `first`
+    // are skipped. Whatever the threads, every item before the first passing one is visited.
+    template <class Pred, class Leaf>
+    void visitNodesOrdered(const Pred& mayHold, const Leaf& leaf, const std::atomic<uint32_t>& first,
+                           uint32_t parallelAbove) const {
+        if (!nodes_.empty()) walkOrdered(0, mayHold, leaf, first, parallelAbove);
+    }
     size_t size() const { return items_.size(); }
 
 private:
+    template <class Pred, class Leaf>
+    void walkOrdered(uint32_t node, const Pred& mayHold, const Leaf& leaf, const std::atomic<uint32_t>& first,
+                     uint32_t parallelAbove) const {
+        const Node& n = nodes_[node];
+        if (n.begin >= first.load(std::memory_order_relaxed) || !mayHold(n.box, n.items)) return;
+        if (n.count > 0) {
+            for (uint32_t i = n.first; i < n.first + n.count && i < first.load(std::memory_order_relaxed); ++i)
+                leaf(items_[i].index, i);
+        } else if (n.items >= parallelAbove) {
+            tbb::parallel_invoke([&] { walkOrdered(n.first, mayHold, leaf, first, parallelAbove); },
+                                 [&] { walkOrdered(n.first + 1, mayHold, leaf, first, parallelAbove); });
+        } else {
+            walkOrdered(n.first, mayHold, leaf, first, parallelAbove);
+            walkOrdered(n.first + 1, mayHold, leaf, first, parallelAbove);
+        }
+    }
     template <bool kTestItems, class Pred, class Leaf>
     bool walk(const Pred& mayHold, const Leaf& leaf) const {
         if (nodes_.empty()) return false;
@@ -72,6 +102,7 @@ private:
         uint32_t first = 0;  // leaf: first index into items_; inner: index of the left child
         uint32_t count = 0;  // leaf: items; inner: 0
         uint32_t items = 0;  // items under the node
+        uint32_t begin = 0;  // position (in items_) of its first item: items are leaf by leaf
     };
     struct Item {
         Aabb box;

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <optional>
 
 #include <glm/geometric.hpp>
@@ -32,6 +33,8 @@ namespace {
 // Smallest cluster of caster triangles tested as a whole (smaller ones go triangle by
 // triangle: a cluster query costs about as much as a few triangles' queries).
 constexpr uint32_t kClusterAtLeast = 8;
+// Caster subtrees of at least this many triangles are walked in parallel.
+constexpr uint32_t kParallelCasters = 256;
 
 struct Receiver {
     Triangle tri;  // window-local
@@ -221,7 +224,6 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 if (!hasRepeatedVertex(a, b, c))
                     casters.push_back({wo.lsTransform.apply(a), wo.lsTransform.apply(b), wo.lsTransform.apply(c)});
             }
-            uint64_t localTests = 0;
             for (int l = 0; l < cv.lightCount; ++l) {
                 Decision& d = cv.at(task.object, task.group, l);
                 if (!wanted(d)) continue;
@@ -250,10 +252,11 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     if (beta >= 0 && !made) made = makeReceiver(k, tri);
                     return beta;
                 };
-                // One caster triangle: true when some receiver reaches its frustum (a candidate).
-                bool candidate = false;
-                std::string seen;  // the candidate, for the bit's note
-                auto castsOnSomething = [&](const Triangle& t) {
+                // One caster triangle: true when some receiver reaches its frustum (a
+                // candidate), described in `seen`. Safe to run for several triangles at once.
+                uint64_t tested = 0;  // exact tests, as a sequential walk makes them
+                auto castsOnSomething = [&](const Triangle& t, std::string& seen, uint64_t& tests) {
+                    bool candidate = false;
                     // Built on the first receiver that passes the broad phase and the rules:
                     // most caster triangles of a dense mesh never need one.
                     std::optional<ExactFrustum> frustum;
@@ -266,7 +269,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         if (beta < 0) return false;
                         const Receiver& r = *made;
                         if (!exhaustive && (query->misses(r.tri) || filter.certainlyMisses(r.tri, beta))) return false;
-                        ++localTests;
+                        ++tests;
                         if (!frustum) frustum.emplace(t, lg, L.filterRadius);
                         std::array<glm::dvec3, 2> part;
                         if (!frustum->reaches(r.tri, beta, &part)) return false;
@@ -297,16 +300,29 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     }
                     return candidate;
                 };
+                bool candidate = false;
+                std::string seen;  // the candidate, for the bit's note
                 if (!exhaustive) {
                     // The caster's triangles by the clusters of its mesh tree, top down. A cluster whose column no receiver can be behind
                     // (ShadowQuery::ofCluster, clusterMisses) holds no triangle with a
                     // candidate, and is left whole: a buried or isolated part of a dense
                     // mesh costs a few cluster queries instead of one query per triangle.
+                    // Large subtrees run in parallel (a window's one dense caster would
+                    // otherwise hold one core); the candidate kept is the first in the tree's
+                    // order, as a sequential walk finds it, so notes do not depend on threads.
                     const Mesh& cm = *wo.mesh;
-                    trees_.tree(cm).visitNodes(
+                    std::atomic<uint32_t> first{BoxTree::kNone};
+                    std::mutex firstMutex;
+                    // Exact tests per caster triangle that made any: those after the first
+                    // candidate (run ahead in parallel) are not counted, so the count is the
+                    // same on any number of threads.
+                    std::vector<std::pair<uint32_t, uint64_t>> testsAt;
+                    trees_.tree(cm).visitNodesOrdered(
                         [&](const Aabb& msBox, uint32_t items) {
                             // A few triangles cost about what one cluster query does: test them.
                             if (items <= kClusterAtLeast) return true;
+                            // Subtrees may run on other TBB threads: gradual underflow there too.
+                            const FloatModeScope ieeeHere(FloatModeScope::Underflow::Gradual);
                             const ShadowQuery cq = ShadowQuery::ofCluster(msBox, wo.lsTransform, lg, L.filterRadius, margin);
                             return forReceivers(cq, local ? limits : cq.columnBox(L, limits), [&](uint32_t k, uint32_t tri) {
                                 std::optional<Receiver> made;
@@ -314,17 +330,33 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                 return beta >= 0 && !cq.clusterMisses(made->tri, beta);
                             });
                         },
-                        [&](uint32_t tri) {
-                            if (cm.triangleGroup[tri] != uint32_t(task.group)) return false;
+                        [&](uint32_t tri, uint32_t position) {
+                            if (cm.triangleGroup[tri] != uint32_t(task.group)) return;
+                            const FloatModeScope ieeeHere(FloatModeScope::Underflow::Gradual);  // as above
                             const auto& i = cm.triangles[tri];
-                            return castsOnSomething(
+                            std::string note;
+                            uint64_t n = 0;
+                            const bool found = castsOnSomething(
                                 {wo.lsTransform.apply(cm.positions[i[0]]), wo.lsTransform.apply(cm.positions[i[1]]),
-                                 wo.lsTransform.apply(cm.positions[i[2]])});
-                        });
+                                 wo.lsTransform.apply(cm.positions[i[2]])},
+                                note, n);
+                            if (!found && n == 0) return;
+                            const std::lock_guard<std::mutex> lock(firstMutex);
+                            if (n > 0) testsAt.emplace_back(position, n);
+                            if (found && position < first.load()) {
+                                first.store(position);
+                                seen = std::move(note);
+                            }
+                        },
+                        first, kParallelCasters);
+                    candidate = first.load() != BoxTree::kNone;
+                    for (const auto& [position, n] : testsAt)
+                        if (position <= first.load()) tested += n;
                 } else {
                     for (const Triangle& t : casters)
-                        if (castsOnSomething(t)) break;
+                        if ((candidate = castsOnSomething(t, seen, tested))) break;
                 }
+                tests += tested;
                 if (candidate) {
                     if (d.verdict == Verdict::Undecided) addNote(d, "geometry", std::move(seen));
                     continue;
@@ -341,7 +373,6 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                            " caster triangles; volume within " + worldBox(volume, window.wsOrigin) + ")");
                 ++culled;
             }
-            tests += localTests;
         });
         if (contradiction)
             return makeError(ErrorKind::Internal, window.centrePath, 0,

@@ -624,7 +624,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         double dmin = 1e300;
         for (size_t k = 0; k < w.objects.size(); ++k) {
             if (distanceToBox(L.position, w.objects[k].lsBounds) >= dmin) continue;
-            const auto& to = tris.objects[k];
+            const auto& to = tris.object(k);
             const auto& mt = w.objects[k].mesh->triangles;
             for (uint32_t t : to.triangles)
                 dmin = std::min(dmin, pointTriangleDistance(L.position, to.positions[mt[t][0]], to.positions[mt[t][1]],
@@ -644,7 +644,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     const double biasEff = persp ? L.bias / std::sqrt(1 + 2 * t * t) : L.bias;
 
     auto position = [&](uint32_t object, uint32_t vertex) -> const glm::dvec3& {
-        return tris.objects[object].positions[vertex];
+        return tris.object(object).positions[vertex];
     };
 
     // Casters: every triangle of a group examined here, per view with the pixels (8 x 8
@@ -655,7 +655,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     for (size_t k = 0; k < w.objects.size(); ++k) {
         if (queryOf[k].empty()) continue;
         const Mesh& mesh = *w.objects[k].mesh;
-        for (uint32_t tr : tris.objects[k].triangles) {
+        for (uint32_t tr : tris.object(k).triangles) {
             const int id = queryOf[k][mesh.triangleGroup[tr]];
             if (id >= 0) casters.push_back({uint32_t(k), tr, uint32_t(id)});
         }
@@ -694,11 +694,14 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     // per-triangle work: the pieces drawn are the same.
     std::vector<uint32_t> near;
     for (size_t k = 0; k < w.objects.size(); ++k) {
-        const WindowTriangles::Object& to = tris.objects[k];
-        if (to.triangles.empty()) continue;
-        const std::array<glm::dvec3, 8> corners = boxCorners(to.lsBounds);
+        // The object's bounds (all its triangles, a box at least as large as its
+        // non-degenerate ones'): its window-local triangles are made only if it is near.
+        if (w.objects[k].mesh->triangles.empty() || w.objects[k].lsBounds.empty()) continue;
+        const std::array<glm::dvec3, 8> corners = boxCorners(w.objects[k].lsBounds);
         if (std::any_of(preps.begin(), preps.end(),
                         [&](const ViewPrep& vp) { return !vp.skip && !vp.misses(corners.data(), 8, vp.dilatePx); })) {
+            const WindowTriangles::Object& to = tris.object(k);
+            if (to.triangles.empty()) continue;
             near.push_back(uint32_t(k));
             work.edgesOf(w.objects[k].mesh, to.triangles);  // built here: read in parallel below
         }
@@ -712,7 +715,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         const uint32_t k = near[i];
         const WindowObject& o = w.objects[k];
         const Mesh& mesh = *o.mesh;
-        const auto& to = tris.objects[k];
+        const auto& to = tris.object(k);
         ObjectSurfaces& out = surfaces[i];
         const bool terrainRule = w.hasTerrain && o.kind != ChunkObject::Kind::Terrain;
         std::vector<int8_t> cls(mesh.triangles.size(), 0);  // +1 CCW on screen, -1 CW, 0 not an occluder
@@ -868,7 +871,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         tbb::parallel_for(size_t(0), near.size(), [&](size_t i) {
             const FloatModeScope taskMode(FloatModeScope::Underflow::Gradual);  // as run()
             ObjectPieces& out = pieces[i];
-            const std::array<glm::dvec3, 8> corners = boxCorners(tris.objects[near[i]].lsBounds);
+            const std::array<glm::dvec3, 8> corners = boxCorners(tris.object(near[i]).lsBounds);
             if (vp.misses(corners.data(), 8, dilatePx)) return;  // nothing of it reaches this view's casters
             for (const Sheet& s : surfaces[i].sheets) {
                 SheetPieces p;

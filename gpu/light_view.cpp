@@ -142,11 +142,13 @@ std::vector<LightView> lightViews(const BakeWindow& w, const Light& L, int resol
     return views;
 }
 
-WindowTriangles::WindowTriangles(const BakeWindow& w) {
-    objects.resize(w.objects.size());
-    for (size_t k = 0; k < w.objects.size(); ++k) {
-        const WindowObject& o = w.objects[k];
-        Object& out = objects[k];
+WindowTriangles::WindowTriangles(const BakeWindow& w)
+    : w_(w), objects_(w.objects.size()), once_(std::make_unique<std::once_flag[]>(w.objects.size())) {}
+
+const WindowTriangles::Object& WindowTriangles::object(size_t k) const {
+    std::call_once(once_[k], [&] {
+        const WindowObject& o = w_.objects[k];
+        Object& out = objects_[k];
         out.positions.reserve(o.mesh->positions.size());
         for (const glm::dvec3& p : o.mesh->positions) out.positions.push_back(o.lsTransform.apply(p));
         for (size_t t = 0; t < o.mesh->triangles.size(); ++t) {
@@ -157,7 +159,8 @@ WindowTriangles::WindowTriangles(const BakeWindow& w) {
             out.triangles.push_back(uint32_t(t));
             for (uint32_t v : tri) out.lsBounds.extend(out.positions[v]);
         }
-    }
+    });
+    return objects_[k];
 }
 
 }  // namespace shadowcull::gpu

@@ -3,6 +3,9 @@
 // triangles in window-local double coordinates, computed once per window.
 #pragma once
 
+#include <memory>
+#include <mutex>
+
 #include <array>
 #include <vector>
 
@@ -63,15 +66,25 @@ std::vector<LightView> lightViews(const BakeWindow& w, const Light& L, int resol
 // aligned with W, so a light straight down gets U = +x, V = -z exactly.
 void lightBasis(const glm::dvec3& W, glm::dvec3& U, glm::dvec3& V);
 
-// Window-local triangles of every window object, double precision, computed once.
-struct WindowTriangles {
+// Window-local triangles of the window's objects, double precision, each object's computed
+// on first use (thread-safe) and kept: a window of dense meshes holds millions of
+// triangles, of which a light's few undecided casters need a handful of objects.
+class WindowTriangles {
+public:
     struct Object {
         std::vector<glm::dvec3> positions;  // per mesh vertex, window-local
         std::vector<uint32_t> triangles;    // mesh triangle indices with three distinct vertices
         Aabb lsBounds;                      // of those triangles' vertices, from these positions
     };
-    std::vector<Object> objects;  // parallel to BakeWindow::objects
     explicit WindowTriangles(const BakeWindow& w);
+    // Parallel to BakeWindow::objects.
+    const Object& object(size_t k) const;
+    size_t size() const { return objects_.size(); }
+
+private:
+    const BakeWindow& w_;
+    mutable std::vector<Object> objects_;
+    mutable std::unique_ptr<std::once_flag[]> once_;
 };
 
 }  // namespace shadowcull::gpu

@@ -99,10 +99,10 @@ void frameOn(LightView& v, const Aabb& box) {
 std::vector<Aabb> groupBounds(const BakeWindow& w, const WindowTriangles& tris, size_t object) {
     const WindowObject& o = w.objects[object];
     std::vector<Aabb> boxes(o.mesh->groups.size());
-    for (uint32_t t : tris.objects[object].triangles) {
+    for (uint32_t t : tris.object(object).triangles) {
         const size_t g = size_t(o.mesh->triangleGroup[t]);
         if (g < boxes.size())
-            for (uint32_t v : o.mesh->triangles[t]) boxes[g].extend(tris.objects[object].positions[v]);
+            for (uint32_t v : o.mesh->triangles[t]) boxes[g].extend(tris.object(object).positions[v]);
     }
     return boxes;
 }

@@ -7,7 +7,7 @@ Status WindowBuffers::upload(const GlApi& gl, const BakeWindow& w, const WindowT
     ranges_.clear();
     for (size_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
-        const WindowTriangles::Object& to = tris.objects[k];
+        const WindowTriangles::Object& to = tris.object(k);
         std::vector<std::vector<uint32_t>> byGroup(o.mesh->groups.size());
         for (uint32_t t : to.triangles) byGroup[o.mesh->triangleGroup[t]].push_back(t);
         for (size_t g = 0; g < byGroup.size(); ++g) {

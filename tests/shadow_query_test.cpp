@@ -5,6 +5,8 @@
 // origin), and for the cluster filters, for directional and point lights, with and
 // without bias and dilation.
 
+#include <atomic>
+#include <mutex>
 #include <random>
 
 #include <glm/geometric.hpp>
@@ -84,6 +86,57 @@ TEST(BoxTree, VisitsExactlyTheOverlappingItems) {
             for (size_t k = 0; k < n; ++k)
                 ASSERT_EQ(seen[k], !boxes[k].empty() && overlap(boxes[k], query) ? 1 : 0) << "n " << n << " item " << k;
         }
+    }
+}
+
+// The parallel ordered walk finds the same first passing item as the sequential walk, and
+// visits every item before it (the stage's notes and proofs rest on both).
+TEST(BoxTree, OrderedParallelWalkFindsTheSequentialFirst) {
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(0.0, 100.0);
+    std::vector<Aabb> boxes(20000);
+    for (Aabb& b : boxes) {
+        const glm::dvec3 c(u(rng), u(rng), u(rng));
+        b.min = c - glm::dvec3(0.5);
+        b.max = c + glm::dvec3(0.5);
+    }
+    const BoxTree tree(boxes);
+    for (int trial = 0; trial < 30; ++trial) {
+        std::vector<char> passes(boxes.size());
+        const int rate = 1 + trial * 97;  // from every item to very few
+        for (char& p : passes) p = rng() % uint64_t(rate) == 0;
+        auto all = [](const Aabb&, uint32_t) { return true; };
+        uint32_t sequentialFirst = BoxTree::kNone;  // the item visitNodes stops at
+        tree.visitNodes(all, [&](uint32_t k) {
+            if (!passes[k]) return false;
+            sequentialFirst = k;
+            return true;
+        });
+        std::atomic<uint32_t> first{BoxTree::kNone};
+        std::mutex m;
+        uint32_t firstItem = BoxTree::kNone;
+        std::vector<std::atomic<int>> seen(boxes.size());
+        tree.visitNodesOrdered(
+            all,
+            [&](uint32_t k, uint32_t position) {
+                seen[k].fetch_add(1);
+                if (!passes[k]) return;
+                const std::lock_guard<std::mutex> lock(m);
+                if (position < first.load()) {
+                    first.store(position);
+                    firstItem = k;
+                }
+            },
+            first, 64);
+        ASSERT_EQ(firstItem, sequentialFirst) << "trial " << trial;
+        // Every item the sequential walk visited before stopping was visited once.
+        bool reached = false;
+        tree.visitNodes(all, [&](uint32_t k) {
+            if (k == sequentialFirst) reached = true;
+            if (reached) return true;
+            EXPECT_EQ(seen[k].load(), 1) << "item " << k;
+            return false;
+        });
     }
 }
 
