@@ -65,7 +65,7 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
     std::vector<std::shared_ptr<const Evidence>> beyondRange(window.lsLights.size());
     for (size_t l = 0; l < beyondRange.size(); ++l)
         beyondRange[l] = std::make_shared<const Evidence>(
-            Evidence{"the group lies beyond the light's range (" + formatNumber(window.lsLights[l].range) + " m)", {}});
+            Evidence{"the group lies beyond the light's range (" + formatNumber(window.lsLights[l].range) + " m)", {}, {}});
     for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
         ObjectVerdicts& ov = cv.objects[oi];
         if (ov.windowObject < 0) continue;

@@ -46,7 +46,7 @@ const std::vector<StageNote>& Decision::notes() const {
 }
 
 void decide(Decision& d, Verdict v, const char* stage, std::string reason, std::optional<Witness> witness) {
-    decideWith(d, v, stage, nullptr, std::make_shared<const Evidence>(Evidence{std::move(reason), std::move(witness)}));
+    decideWith(d, v, stage, nullptr, std::make_shared<const Evidence>(Evidence{std::move(reason), std::move(witness), {}}));
 }
 
 void decide(Decision& d, Verdict v, const char* stage, std::shared_ptr<const Evidence> shared) {

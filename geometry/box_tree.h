@@ -119,6 +119,9 @@ private:
 // A tree per mesh over its triangles with three distinct vertices (boxes in mesh
 // coordinates), built on first use and kept while windows hold the mesh. Thread-safe:
 // tasks of one window build different meshes' trees in parallel; a tree is built once.
+// Keyed by address: valid while every mesh lives as long as any window that holds it (the
+// whole bake today). A loader that frees meshes as windows slide (issue 16) must call
+// keepOnly() before a freed mesh's address can be reused, or key by something stabler.
 class MeshTreeCache {
 public:
     // The tree of `mesh` (built now if needed). Valid until the next keepOnly().

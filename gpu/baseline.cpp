@@ -252,7 +252,7 @@ Status GpuBaselineMethod::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats
         Decision& d = cv.at(c.object, c.group, c.light);
         ++stats.bitsExamined;
         std::shared_ptr<const Evidence>& reason = reasons[c.samples];
-        if (!reason) reason = std::make_shared<const Evidence>(Evidence{formatCount(c.samples) + " samples passed" + at, {}});
+        if (!reason) reason = std::make_shared<const Evidence>(Evidence{formatCount(c.samples) + " samples passed" + at, {}, {}});
         decide(d, c.samples > 0 ? Verdict::Kept : Verdict::Culled, kStageName, reason);
         ++(c.samples > 0 ? stats.provedKept : stats.provedCulled);
     }

@@ -252,7 +252,9 @@ Expected<RenderReport> renderLightView(const BakeWindow& w, const ChunkVerdicts&
     gl.Disable(GL_DEPTH_TEST);
     gl.Uniform1i(uFlat, 1);
     for (size_t k = 0; k < rq.outlined.size() && k < 64; ++k) {
-        const auto [oi, group] = rq.outlined[k];
+        // Plain copies: a lambda may not capture a structured binding in C++17 (clang refuses).
+        const size_t oi = size_t(rq.outlined[k].first);
+        const int group = int(rq.outlined[k].second);
         if (oi >= cv.objects.size() || cv.objects[oi].windowObject < 0) continue;
         const uint32_t object = uint32_t(cv.objects[oi].windowObject);
         gl.Clear(GL_COLOR_BUFFER_BIT);
