@@ -936,6 +936,14 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
             if (!placed) batches.push_back({s});
         }
         std::vector<RasterPiece> all;
+        {
+            // One allocation: growing by doubling copied millions of 148-byte pieces per view
+            // on windows of dense meshes (and faulted in each new block).
+            size_t total = vp.casterPieces.size();
+            for (const SheetPieces& s : sp) total += s.pieces.size();
+            for (const ObjectPieces& op : pieces) total += op.receivers.size();
+            all.reserve(total);
+        }
         std::vector<std::pair<GLint, GLsizei>> batchRange, batchRects;  // pieces; rectangle vertices
         std::vector<float> rects;
         for (const auto& b : batches) {
