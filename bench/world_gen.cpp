@@ -954,25 +954,9 @@ WorldStats writeWorld(const WorldSpec& spec, const std::string& dir) {
             DeterministicRng rng(chunkSeed(spec.seed, gx, gz, 1));
             const double cx = gx * S, cz = gz * S;
             const double forest = land.forest(cx + S / 2, cz + S / 2);
-            std::vector<Disc> taken;
             // A free spot in the chunk (`margin` from its edges), `clear` from what is taken;
             // after 40 tries it takes the last one anyway (dense forests).
-            auto spot = [&](double clear, double margin) {
-                double x = 0, z = 0;
-                for (int attempt = 0; attempt < 40; ++attempt) {
-                    x = cx + rng.uniform(margin, S - margin);
-                    z = cz + rng.uniform(margin, S - margin);
-                    bool ok = true;
-                    for (const Disc& d : taken)
-                        if ((x - d.x) * (x - d.x) + (z - d.z) * (z - d.z) < (d.r + clear) * (d.r + clear)) {
-                            ok = false;
-                            break;
-                        }
-                    if (ok) break;
-                }
-                taken.push_back({x, z, clear});
-                return std::pair<double, double>{x, z};
-            };
+            SpotPicker spot{rng, cx, cz, S, {}};
             const int total = int(std::lround(spec.objectsPerChunk));
             int placedHere = 0;
             auto count = [&](double expected) { return int(std::floor(expected + rng.uniform(0, 1))); };
@@ -1042,7 +1026,7 @@ WorldStats writeWorld(const WorldSpec& spec, const std::string& dir) {
                     const double a = rng.uniform(0, 2 * kPi), r = d.r + rng.uniform(1.5, 6);
                     x = std::clamp(d.x + r * std::cos(a), cx + 0.5, cx + S - 0.5);
                     z = std::clamp(d.z + r * std::sin(a), cz + 0.5, cz + S - 0.5);
-                    taken.push_back({x, z, 1});
+                    spot.taken.push_back({x, z, 1});
                 } else {
                     std::tie(x, z) = spot(1.5, 1);
                 }
