@@ -329,30 +329,7 @@ bool FrustumFilter::outside(const Plane& p, const Triangle& r, double shift) con
 // with the receiver has numerator exactly 0 and is let through: the plane is then in front
 // or in the caster's plane, never behind. Without dilation only.
 bool FrustumFilter::receiverPlaneInFront(const Triangle& r, double beta) const {
-    const glm::dvec3 e1 = r[1] - r[0], e2 = r[2] - r[0];
-    const glm::dvec3 n = glm::cross(e1, e2);
-    const double nScale = glm::length(e1) * glm::length(e2) + glm::length(n);
-    int denSign = 0;
-    for (const glm::dvec3& p : caster_) {
-        const glm::dvec3 toward = light_.directional ? light_.direction : p - light_.position;
-        const double den = glm::dot(n, toward);
-        const double denBound = 1e-12 * nScale * (std::abs(toward.x) + std::abs(toward.y) + std::abs(toward.z)) + 1e-300;
-        if (!(std::abs(den) > denBound)) return false;
-        const int ds = den > 0 ? 1 : -1;
-        if (denSign != 0 && ds != denSign) return false;
-        denSign = ds;
-        // A caster vertex that is a receiver vertex lies on the receiver's plane: its
-        // numerator is exactly 0 (the plane touches the column there, in the caster's
-        // own plane, which is not behind it).
-        if (beta == 0 && (p == r[0] || p == r[1] || p == r[2])) continue;
-        // Directional: s - beta = (num - beta den) / den must be < 0 (beta is 0 for points).
-        const glm::dvec3 back = r[0] - p;
-        const double num = glm::dot(n, back) - beta * den;
-        const double numBound =
-            1e-12 * nScale * (std::abs(back.x) + std::abs(back.y) + std::abs(back.z) + beta * glm::length(toward)) + 1e-300;
-        if (!(std::abs(num) > numBound) || (num > 0) == (den > 0)) return false;
-    }
-    return true;
+    return receiverPlaneInFrontOf(r, caster_.data(), 3, light_, beta, 0.0, true);
 }
 
 bool FrustumFilter::certainlyMisses(const Triangle& r, double beta) const {
@@ -367,6 +344,38 @@ bool FrustumFilter::certainlyMisses(const Triangle& r, double beta) const {
     for (int e = 0; e < 3; ++e)
         if (outside(planes_[e], r, 0.0)) return true;
     return false;
+}
+
+bool receiverPlaneInFrontOf(const Triangle& r, const glm::dvec3* pts, int count, const LightGeometry& light, double beta,
+                            double slack, bool sharedOnPlane) {
+    const glm::dvec3 e1 = r[1] - r[0], e2 = r[2] - r[0];
+    const glm::dvec3 n = glm::cross(e1, e2);
+    const double nScale = glm::length(e1) * glm::length(e2) + glm::length(n);
+    const double extra = slack * glm::length(n);
+    int denSign = 0;
+    for (int i = 0; i < count; ++i) {
+        const glm::dvec3& p = pts[i];
+        const glm::dvec3 toward = light.directional ? light.direction : p - light.position;
+        const double den = glm::dot(n, toward);
+        const double denBound =
+            1e-12 * nScale * (std::abs(toward.x) + std::abs(toward.y) + std::abs(toward.z)) + extra + 1e-300;
+        if (!(std::abs(den) > denBound)) return false;
+        const int ds = den > 0 ? 1 : -1;
+        if (denSign != 0 && ds != denSign) return false;
+        denSign = ds;
+        // A caster vertex that is a receiver vertex lies on the receiver's plane: its
+        // numerator is exactly 0 (the plane touches the column there, in the caster's
+        // own plane, which is not behind it).
+        if (sharedOnPlane && beta == 0 && (p == r[0] || p == r[1] || p == r[2])) continue;
+        // Directional: s - beta = (num - beta den) / den must be < 0 (beta is 0 for points).
+        const glm::dvec3 back = r[0] - p;
+        const double num = glm::dot(n, back) - beta * den;
+        const double numBound =
+            1e-12 * nScale * (std::abs(back.x) + std::abs(back.y) + std::abs(back.z) + beta * glm::length(toward)) + extra +
+            1e-300;
+        if (!(std::abs(num) > numBound) || (num > 0) == (den > 0)) return false;
+    }
+    return true;
 }
 
 bool doubleSidePlane(const Triangle& t, int e, const LightGeometry& light, SidePlane& out) {

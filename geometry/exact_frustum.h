@@ -106,6 +106,19 @@ struct SidePlane {
 };
 bool doubleSidePlane(const Triangle& caster, int e, const LightGeometry& light, SidePlane& out);
 
+// Along the light's ray through each of `pts` (a caster triangle's vertices, or a caster
+// cluster's box corners), the receiver's plane lies at s(p) = n.(r0 - p) / n.d beyond p
+// (directional), or l(p) - 1 = n.(r0 - p) / n.(p - L) (point light; pass beta 0).
+// Numerators and denominators are affine in p, so when at every point they have certain
+// and opposite signs (the denominators of one sign), s(p) < beta over the points' whole
+// convex hull: the plane, and every receiver point in it, lies in front of the bias there.
+// `slack` (metres) widens every bound (points known only up to it). With `sharedOnPlane`
+// and beta 0, a point that is bitwise a receiver vertex has numerator exactly 0 and is let
+// through (the plane touches the column there, in the caster's own plane). Double only,
+// every rounding covered by a wide bound.
+bool receiverPlaneInFrontOf(const Triangle& receiver, const glm::dvec3* pts, int count, const LightGeometry& light,
+                            double beta, double slack, bool sharedOnPlane);
+
 // Exact facing: +1 when the light meets the receiver's front (counter-clockwise side, or
 // the other side when `mirrored`), -1 when it meets the back, 0 when the light is in the
 // receiver's plane (grazing: a one-sided receiver then receives nothing).

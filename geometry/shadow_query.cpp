@@ -20,7 +20,6 @@ constexpr double kRound = 1e-13;
 }  // namespace
 
 void ShadowQuery::addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm::dvec3& axis) const {
-    if (&to == &hs_ && recordAxes_ && axisCount_ < int(axes_.size())) axes_[size_t(axisCount_++)] = axis;
     const double k0 = dilation_ > 0 ? dilation_ * (1 + 1e-9) : 0.0;
     if (pointLight_) {
         // Seen along `axis`, the cone {L + l (p - L) : l > 0} over the points is a wedge
@@ -182,9 +181,11 @@ ShadowQuery ShadowQuery::ofCluster(const Aabb& b, const RowTransform& m, const L
             HalfSpace{-f, extreme(f, false), dilation > 0 ? dilation * len * (1 + 1e-9) : 0.0, 1e-12 * fScale, margin * len});
     }
     // Slabs (or wedges) of the box's own axes.
-    q.recordAxes_ = true;
-    for (int i = 0; i < 3; ++i) q.addSlabs(q.hs_, q.count_, m.rows[size_t(i)]);
-    q.recordAxes_ = false;
+    for (int i = 0; i < 3; ++i) {
+        q.addSlabs(q.hs_, q.count_, m.rows[size_t(i)]);
+        q.axes_[size_t(i)] = m.rows[size_t(i)];
+    }
+    q.axisCount_ = 3;
     q.frustumCount_ = q.count_;
     for (const glm::dvec3& e : {glm::dvec3(1, 0, 0), glm::dvec3(0, 1, 0), glm::dvec3(0, 0, 1)}) q.addSlabs(q.hs_, q.count_, e);
     return q;
@@ -232,29 +233,10 @@ Aabb ShadowQuery::columnBox(const Light& L, const Aabb& limits) const { return s
 bool ShadowQuery::clusterMisses(const Triangle& r, double beta) const {
     if (misses(r)) return true;
     if (dilation_ > 0) return false;  // the receiver may be up to r off the rays: no more
-    const glm::dvec3 e1 = r[1] - r[0], e2 = r[2] - r[0];
-    const glm::dvec3 n = glm::cross(e1, e2);
-    const double nScale = glm::length(e1) * glm::length(e2) + glm::length(n);
-    if (pointLight_) {
-        // FrustumFilter::receiverPlaneInFront for a point light (bias 0) over the corners:
-        // along the ray through p the plane is at l(p) - 1 = n.(r0 - p) / n.(p - L); both
-        // affine in p, so certain and opposite signs at every corner (the denominators of
-        // one sign) put the plane in front of the light's rays over the whole box.
-        int denSign = 0;
-        for (int i = 0; i < pointCount_; ++i) {
-            const glm::dvec3 toward = pts_[size_t(i)] - light_;
-            const double den = glm::dot(n, toward);
-            if (!(std::abs(den) > 1e-12 * nScale * norm1(toward) + margin_ * glm::length(n) + 1e-300)) return false;
-            const int ds = den > 0 ? 1 : -1;
-            if (denSign != 0 && ds != denSign) return false;
-            denSign = ds;
-            const glm::dvec3 back = r[0] - pts_[size_t(i)];
-            const double num = glm::dot(n, back);
-            if (!(std::abs(num) > 1e-12 * nScale * norm1(back) + margin_ * glm::length(n) + 1e-300) || (num > 0) == (den > 0))
-                return false;
-        }
-        return true;
-    }
+    const LightGeometry light{directional_, direction_, light_};
+    // The receiver's plane in front of every corner (receiverPlaneInFrontOf: affine in the
+    // caster point, so the corners decide the whole box; point lights without the bias).
+    if (pointLight_) return receiverPlaneInFrontOf(r, pts_.data(), pointCount_, light, 0.0, margin_, false);
     // Depth: a receiver point behind a caster point p by more than beta is deeper than p by
     // more than beta |d| along w = d / |d|; none when the receiver's deepest vertex is not
     // deeper than the cluster's nearest corner by that.
@@ -270,18 +252,7 @@ bool ShadowQuery::clusterMisses(const Triangle& r, double beta) const {
         size = std::max(size, norm1(pts_[size_t(i)]));
     }
     if (deepest < nearest + beta * dLen * (1 - 1e-9) - margin_ - 1e-12 * size) return true;
-    // The receiver's plane in front of every corner (FrustumFilter::receiverPlaneInFront):
-    // along the ray through p it lies at s(p) = n.(r0 - p) / n.d; affine in p, so when it is
-    // below beta at every corner with certainty it is below beta over the whole box.
-    const double den = glm::dot(n, direction_);
-    if (!(std::abs(den) > 1e-12 * nScale * norm1(direction_) + 1e-300)) return false;
-    for (int i = 0; i < pointCount_; ++i) {
-        const glm::dvec3 back = r[0] - pts_[size_t(i)];
-        const double num = glm::dot(n, back) - beta * den;
-        const double bound = 1e-12 * nScale * (norm1(back) + beta * glm::length(direction_)) + margin_ * glm::length(n) + 1e-300;
-        if (!(std::abs(num) > bound) || (num > 0) == (den > 0)) return false;
-    }
-    return true;
+    return receiverPlaneInFrontOf(r, pts_.data(), pointCount_, light, beta, margin_, false);
 }
 
 // The farthest point of the box from the light is nearer than every point of the frustum.

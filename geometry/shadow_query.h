@@ -111,11 +111,10 @@ private:
     int frustumCount_ = 0, count_ = 0;
     // Directional lights: the caster and light, for the slabs of an instance's axes.
     bool directional_ = false;
-    // The axes whose slabs (or wedges) hs_ holds: the frustum's own (a cluster's box) and
-    // the world's. Mutable: recorded by addSlabs while the query is built.
-    mutable std::array<glm::dvec3, 6> axes_{};
-    mutable int axisCount_ = 0;
-    bool recordAxes_ = false;  // while a cluster's own slabs are added
+    // The axes whose slabs (or wedges) the frustum's half-spaces (hs_ up to frustumCount_)
+    // hold: a cluster's box axes; none for a triangle.
+    std::array<glm::dvec3, 3> axes_{};
+    int axisCount_ = 0;
     std::array<glm::dvec3, 8> pts_{};  // the caster (3 points) or the cluster box's corners (8)
     int pointCount_ = 0;
     glm::dvec3 direction_{0.0};
