@@ -17,6 +17,12 @@ constexpr double kMaxLocalCoordinate = 1e5;
 // A transform's 3x3 part: each entry (a scale of up to 10,000; a singular or nearly
 // singular matrix is refused separately by its determinant).
 constexpr double kMaxLinearEntry = 1e4;
+// The inverse of a transform's 3x3 part: each entry (a model unit no shorter than 1e-10 m in
+// any direction). Embree and OpenGL invert the placement in floats: with window-local
+// coordinates up to ~1e5 m the ray in model space stays below 1e15, inside Embree's valid
+// range (1.8e18), and an entry below float's normal range (a scale of 1e-45) is never
+// flushed to zero, which would make the float copy singular.
+constexpr double kMaxInverseEntry = 1e10;
 // Metres: the side of a chunk.
 constexpr double kMinChunkSize = 1.0;
 constexpr double kMaxChunkSize = 1e5;

@@ -74,9 +74,12 @@ struct RowTransform {
     glm::dvec3 apply(const glm::dvec3& p) const { return p.x * rows[0] + p.y * rows[1] + p.z * rows[2] + rows[3]; }
     glm::dvec3 applyLinear(const glm::dvec3& v) const { return v.x * rows[0] + v.y * rows[1] + v.z * rows[2]; }
     double determinant() const;
-    // True when the rows are (nearly) linearly dependent or not finite: |det| <= 1e-9 times
-    // the product of the row lengths (independent of the transform's overall scale).
-    bool isSingular() const;
+    // Why the 3x3 part cannot be used, or "" when it can: its rows are (nearly) linearly
+    // dependent or not finite (|det| <= 1e-9 times the product of the row lengths,
+    // independent of the overall scale), or its inverse has an entry above
+    // limits::kMaxInverseEntry (an axis too short for the float copies Embree and GL use).
+    std::string singularReason() const;
+    bool isSingular() const { return !singularReason().empty(); }
 };
 
 // A 16-bit heightmap over one chunk square (spec: sample (i, j) at chunk-local

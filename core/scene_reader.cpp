@@ -44,14 +44,28 @@ double RowTransform::determinant() const {
     return a.x * (b.y * c.z - b.z * c.y) - a.y * (b.x * c.z - b.z * c.x) + a.z * (b.x * c.y - b.y * c.x);
 }
 
-bool RowTransform::isSingular() const {
+std::string RowTransform::singularReason() const {
     // Scale-invariant: |det| divided by the product of the row lengths is 1 for orthogonal
     // rows of any length and 0 for dependent ones (Hadamard's inequality). An absolute
     // threshold on the determinant would refuse gltfpack's dequantization scales (1e-4 per
     // axis, determinant 1e-13), which are valid and well conditioned.
     const double lengths = glm::length(rows[0]) * glm::length(rows[1]) * glm::length(rows[2]);
     const double det = determinant();
-    return !(std::isfinite(det) && lengths > 0.0 && std::abs(det) > 1e-9 * lengths);
+    const std::string shape = "determinant " + formatNumber(det) + ", rows of lengths " +
+                              formatNumber(glm::length(rows[0])) + ", " + formatNumber(glm::length(rows[1])) + ", " +
+                              formatNumber(glm::length(rows[2]));
+    if (!(std::isfinite(det) && lengths > 0.0 && std::abs(det) > 1e-9 * lengths))
+        return "singular transform (" + shape + ")";
+    // The inverse's entries are cofactors over det; compare without dividing (no overflow).
+    const glm::dvec3 &a = rows[0], &b = rows[1], &c = rows[2];
+    const glm::dvec3 cofactors[3] = {glm::cross(b, c), glm::cross(c, a), glm::cross(a, b)};
+    double largest = 0.0;
+    for (const glm::dvec3& k : cofactors) largest = std::max({largest, std::abs(k.x), std::abs(k.y), std::abs(k.z)});
+    if (!(largest <= limits::kMaxInverseEntry * std::abs(det)))
+        return "transform too thin to place in float geometry (" + shape + "; its inverse has an entry of " +
+               formatNumber(largest / std::abs(det)) + ", above " + formatNumber(limits::kMaxInverseEntry) +
+               ": an axis shorter than 1e-10 m per model unit)";
+    return "";
 }
 
 std::optional<ChunkCoord> parseChunkName(const std::string& fileName) {
@@ -374,11 +388,8 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
                     if (Status s = parseVec3(path, re, o.transform.rows[size_t(r)], maxAbs); !s)
                         skip(re->GetLineNum(), s.error().message);
                 }
-                if (!o.skipped && o.transform.isSingular())
-                    skip(c->GetLineNum(), "singular transform (determinant " + formatNumber(o.transform.determinant()) +
-                                              ", rows of lengths " + formatNumber(glm::length(o.transform.rows[0])) + ", " +
-                                              formatNumber(glm::length(o.transform.rows[1])) + ", " +
-                                              formatNumber(glm::length(o.transform.rows[2])) + ")");
+                if (!o.skipped)
+                    if (std::string why = o.transform.singularReason(); !why.empty()) skip(c->GetLineNum(), why);
             }
         }
         if (o.resource.empty()) skip(o.line, "<" + n + "> has no <resource>");

@@ -341,6 +341,42 @@ TEST(ChunkReader, SingularTransformTestIsScaleInvariant) {
     for (const Diagnostic& d : diags) EXPECT_NE(d.message.find("singular"), std::string::npos) << d.what();
 }
 
+// A transform whose inverse float geometry cannot hold: an axis of 1e-45 (a float denormal,
+// flushed to zero inside Embree, whose instance then had an infinite inverse and aborted the
+// bake: fuzz/regressions/bake/embree-assert-in-rtcIntersect1-e77f2b53) or an anisotropic
+// 1e-12 is refused with its line; an axis of 1e-8 per model unit (gltfpack's dequantization
+// of a millimetre part) is kept.
+TEST(ChunkReader, TransformTooThinForFloatGeometryIsRefused) {
+    fs::path dir = freshTestDir();
+    writeText(dir / "00000000o.chunk", R"(<chunk>
+  <model>
+    <resource> a.obj </resource>
+    <transform> <row0> 1e-45 1e-45 0 </row0> <row1> 0 1 0 </row1> <row2> 0 0 1 </row2> <row3> 50 0.2 50 </row3> </transform>
+  </model>
+  <model>
+    <resource> a.obj </resource>
+    <transform> <row0> 1 0 0 </row0> <row1> 0 1e-12 0 </row1> <row2> 0 0 1 </row2> <row3> 0 0 0 </row3> </transform>
+  </model>
+  <model>
+    <resource> a.obj </resource>
+    <transform> <row0> 1e-8 0 0 </row0> <row1> 0 1e-8 0 </row1> <row2> 0 0 1e-8 </row2> <row3> 0 0 0 </row3> </transform>
+  </model>
+</chunk>
+)");
+    std::vector<Diagnostic> diags;
+    auto cf = readChunkFile((dir / "00000000o.chunk").string(), {0, 0}, diags);
+    ASSERT_TRUE(cf) << cf.error().what();
+    ASSERT_EQ(cf->objects.size(), 3u);
+    EXPECT_TRUE(cf->objects[0].skipped);
+    EXPECT_TRUE(cf->objects[1].skipped);
+    EXPECT_FALSE(cf->objects[2].skipped) << cf->objects[2].skipReason;
+    ASSERT_EQ(diags.size(), 2u);
+    EXPECT_EQ(diags[0].line, 4);
+    EXPECT_EQ(diags[1].line, 8);
+    for (const Diagnostic& d : diags)
+        EXPECT_NE(d.message.find("too thin to place in float geometry"), std::string::npos) << d.what();
+}
+
 TEST(ChunkReader, MalformedXmlStopsWithLine) {
     fs::path dir = freshTestDir();
     writeText(dir / "00000000o.chunk", "<chunk>\n  <model>\n    <resource> a.obj </resourc>\n  </model>\n</chunk>\n");
