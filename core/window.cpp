@@ -17,39 +17,96 @@ std::optional<double> BakeWindow::lsTerrainHeight(double x, double z) const {
     return lowest;
 }
 
-std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double x1, double z1) const {
-    if (terrainObjects.empty()) return std::nullopt;
+namespace {
+
+// The lowest point of cell (i, j)'s triangulated surface over the part [u0,u1] x [v0,v1]
+// of the cell (cell-local fractions in [0, 1]). The surface is two planes split along
+// u = v (Heightfield::toMesh): (i,j)-(i,j+1)-(i+1,j+1) where v >= u, (i,j)-(i+1,j+1)-(i+1,j)
+// where u >= v; over each half a plane is lowest at a corner of that half's polygon: the
+// rectangle's corners in it and where the diagonal crosses the rectangle's sides.
+double cellSurfaceMin(const Heightfield& hf, int i, int j, double u0, double v0, double u1, double v1) {
+    const double h00 = hf.at(i, j), h10 = hf.at(i + 1, j), h01 = hf.at(i, j + 1), h11 = hf.at(i + 1, j + 1);
+    auto height = [&](double u, double v) {
+        return v >= u ? h00 + u * (h11 - h01) + v * (h01 - h00) : h00 + u * (h10 - h00) + v * (h11 - h10);
+    };
+    double lowest = std::min({height(u0, v0), height(u1, v0), height(u0, v1), height(u1, v1)});
+    // The diagonal u = v meets the rectangle where [u0,u1] and [v0,v1] overlap.
+    const double lo = std::max(u0, v0), hi = std::min(u1, v1);
+    if (lo <= hi) lowest = std::min({lowest, height(lo, lo), height(hi, hi)});
+    return lowest;
+}
+
+// Calls visit(terrain) for every terrain over each chunk square the rectangle
+// [x0,x1] x [z0,z1] meets; false (stopping early) when one of those squares has none, or
+// when the rectangle spans more than `maxSquares` squares a side.
+template <class Visit>
+bool forTerrainsOver(const BakeWindow& w, double x0, double z0, double x1, double z1, int maxSquares, const Visit& visit) {
+    if (w.terrainObjects.empty() || !(x0 <= x1 && z0 <= z1)) return false;
     // Chunk squares are aligned with the window origin (a chunk corner).
-    const int cx0 = int(std::floor(x0 / chunkSize)), cx1 = int(std::floor(x1 / chunkSize));
-    const int cz0 = int(std::floor(z0 / chunkSize)), cz1 = int(std::floor(z1 / chunkSize));
-    if (cx1 - cx0 > 64 || cz1 - cz0 > 64) return std::nullopt;
-    std::optional<double> lowest;
-    for (int cx = cx0; cx <= cx1; ++cx) {
+    const int cx0 = int(std::floor(x0 / w.chunkSize)), cx1 = int(std::floor(x1 / w.chunkSize));
+    const int cz0 = int(std::floor(z0 / w.chunkSize)), cz1 = int(std::floor(z1 / w.chunkSize));
+    if (cx1 - cx0 > maxSquares || cz1 - cz0 > maxSquares) return false;
+    for (int cx = cx0; cx <= cx1; ++cx)
         for (int cz = cz0; cz <= cz1; ++cz) {
             bool covered = false;
-            for (size_t k : terrainObjects) {
-                const WindowObject& o = objects[k];
-                if (o.lsTerrainOrigin.x != cx * chunkSize || o.lsTerrainOrigin.z != cz * chunkSize) continue;
+            for (size_t k : w.terrainObjects) {
+                const WindowObject& o = w.objects[k];
+                if (o.lsTerrainOrigin.x != cx * w.chunkSize || o.lsTerrainOrigin.z != cz * w.chunkSize) continue;
                 covered = true;
-                const Heightfield& hf = *o.heightfield;
-                const double cell = hf.size / double(hf.n - 1);
-                auto index = [&](double v, double origin, bool up) {
-                    double f = (v - origin) / cell;
-                    int i = up ? int(std::ceil(f)) : int(std::floor(f));
-                    return std::clamp(i, 0, hf.n - 1);
-                };
-                const int i0 = index(x0, o.lsTerrainOrigin.x, false), i1 = index(x1, o.lsTerrainOrigin.x, true);
-                const int j0 = index(z0, o.lsTerrainOrigin.z, false), j1 = index(z1, o.lsTerrainOrigin.z, true);
-                for (int j = j0; j <= j1; ++j)
-                    for (int i = i0; i <= i1; ++i) {
-                        const double h = hf.at(i, j) + o.lsTerrainOrigin.y;
-                        if (!lowest || h < *lowest) lowest = h;
-                    }
+                visit(o);
             }
-            if (!covered) return std::nullopt;
+            if (!covered) return false;
         }
-    }
-    return lowest;
+    return true;
+}
+
+}  // namespace
+
+std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double x1, double z1) const {
+    std::optional<double> lowest;
+    const bool covered = forTerrainsOver(*this, x0, z0, x1, z1, 64, [&](const WindowObject& o) {
+        const Heightfield& hf = *o.heightfield;
+        const int cells = hf.n - 1;
+        const double cell = hf.size / double(cells);
+        // The rectangle in this terrain's sample units, clamped to its square.
+        const double f0 = std::clamp((x0 - o.lsTerrainOrigin.x) / cell, 0.0, double(cells));
+        const double f1 = std::clamp((x1 - o.lsTerrainOrigin.x) / cell, 0.0, double(cells));
+        const double g0 = std::clamp((z0 - o.lsTerrainOrigin.z) / cell, 0.0, double(cells));
+        const double g1 = std::clamp((z1 - o.lsTerrainOrigin.z) / cell, 0.0, double(cells));
+        const int i0 = std::min(int(f0), cells - 1), i1 = std::min(int(f1), cells - 1);
+        const int j0 = std::min(int(g0), cells - 1), j1 = std::min(int(g1), cells - 1);
+        for (int j = j0; j <= j1; ++j)
+            for (int i = i0; i <= i1; ++i) {
+                const double u0 = std::clamp(f0 - i, 0.0, 1.0), u1 = std::clamp(f1 - i, 0.0, 1.0);
+                const double v0 = std::clamp(g0 - j, 0.0, 1.0), v1 = std::clamp(g1 - j, 0.0, 1.0);
+                const double h = cellSurfaceMin(hf, i, j, u0, v0, u1, v1) + o.lsTerrainOrigin.y;
+                if (!lowest || h < *lowest) lowest = h;
+            }
+    });
+    return covered ? lowest : std::nullopt;
+}
+
+bool BakeWindow::lsTerrainTrianglesOver(double x0, double z0, double x1, double z1,
+                                        std::vector<std::array<glm::dvec3, 3>>& out) const {
+    // A part spanning more than a few chunks: not worth it (the caller keeps the receiver).
+    return forTerrainsOver(*this, x0, z0, x1, z1, 4, [&](const WindowObject& o) {
+        const Heightfield& hf = *o.heightfield;
+        const int cells = hf.n - 1;
+        const double cell = hf.size / double(cells);
+        auto index = [&](double v, double origin, int slack) {
+            return std::clamp(int(std::floor((v - origin) / cell)) + slack, 0, cells - 1);
+        };
+        const int i0 = index(x0, o.lsTerrainOrigin.x, -1), i1 = index(x1, o.lsTerrainOrigin.x, 1);
+        const int j0 = index(z0, o.lsTerrainOrigin.z, -1), j1 = index(z1, o.lsTerrainOrigin.z, 1);
+        for (int j = j0; j <= j1; ++j)
+            for (int i = i0; i <= i1; ++i)
+                for (int half = 0; half < 2; ++half) {
+                    // Heightfield::toMesh: cell (i, j) holds triangles 2 (j cells + i) and the next.
+                    const auto& t = o.mesh->triangles[2 * (size_t(j) * size_t(cells) + size_t(i)) + size_t(half)];
+                    out.push_back({o.lsTransform.apply(o.mesh->positions[t[0]]), o.lsTransform.apply(o.mesh->positions[t[1]]),
+                                   o.lsTransform.apply(o.mesh->positions[t[2]])});
+                }
+    });
 }
 
 namespace {

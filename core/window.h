@@ -6,6 +6,7 @@
 #pragma once
 
 #include <memory>
+#include <array>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -59,10 +60,20 @@ struct BakeWindow {
     // Lowest terrain surface over window-local (x, z), or nothing where no terrain lies.
     // (The lowest, so that a receiver is only discounted when it is under every terrain.)
     std::optional<double> lsTerrainHeight(double x, double z) const;
-    // A lower bound of the terrain surface over the window-local rectangle [x0,x1] x [z0,z1]
-    // (the lowest sample of every cell it touches, of every terrain there), or nothing when
-    // part of the rectangle has no terrain. Conservative for "is this under the terrain".
+    // The lowest point of the terrain surface (the triangulated heightfield, of every
+    // terrain there) over the window-local rectangle [x0,x1] x [z0,z1], or nothing when
+    // part of the rectangle has no terrain. Computed in double from the rectangle's corners
+    // and the cells' diagonals: within rounding (~1e-15 relative) of the true minimum, so a
+    // caller deciding "is this under the terrain" subtracts a margin above that. (It was the
+    // lowest sample of every cell touched: on a slope, a cell's relief too low.)
     std::optional<double> lsTerrainMinOver(double x0, double z0, double x1, double z1) const;
+    // Appends to `out` the window-local terrain triangles (as the terrains' meshes place
+    // them, so the very triangles the stages test as receivers) of every cell that meets
+    // the rectangle [x0,x1] x [z0,z1], one cell more on each side against rounding, of
+    // every terrain there. False when part of the rectangle has no terrain (`out` is then
+    // incomplete and must not be used).
+    bool lsTerrainTrianglesOver(double x0, double z0, double x1, double z1,
+                                std::vector<std::array<glm::dvec3, 3>>& out) const;
     // The meshes the window holds (what a stage's per-mesh cache keeps as the window slides).
     std::unordered_set<const Mesh*> meshes() const {
         std::unordered_set<const Mesh*> m;

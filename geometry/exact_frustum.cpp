@@ -103,10 +103,13 @@ struct ExactFrustum::Impl {
     struct Entry {
         Vector m;  // inward (-outward) in-plane normal of the edge
         Point e;   // a point of the edge
-        FT mDotD;  // m . d > 0
+        FT mDotD;  // per metre of bias: m . d > 0 (directional), m . (e - L) / dmax > 0 (point)
         double dilate = 0;
     };
     std::vector<Entry> entries;
+
+    std::vector<Point> insideSides(const Triangle& r) const;
+    std::vector<HalfSpace> opens(double beta) const;
 };
 
 namespace {
@@ -154,6 +157,70 @@ bool buildSheet(ExactFrustum::Impl& m, const Point (&v)[3], const Vector& d, dou
     return true;
 }
 
+// A point light in the caster's plane: the shadow is the wedge { L + l (p - L) : p in t,
+// l > 1 + beta / dmax } inside that plane. Bounded by the plane (two closed half-spaces),
+// the two lines from L through the caster's angular extremes (closed), and, open, the
+// edges the light enters by: with m an edge's in-plane normal into the caster and
+// m . (e - L) > 0, every point of the wedge has m . (x - e) > (beta / dmax) m . (e - L)
+// (a superset of the wedge: conservative). Returns false when there is no such wedge:
+// the light on the caster's line or inside or on the caster, seen from which it spans
+// half a turn or more.
+bool buildPointSheet(ExactFrustum::Impl& m, const Point (&v)[3], const Point& L, double dilation) {
+    Vector n = CGAL::cross_product(v[1] - v[0], v[2] - v[0]);
+    if (n == CGAL::NULL_VECTOR) {  // no area: the plane of its line and the light
+        for (int e = 0; e < 3 && n == CGAL::NULL_VECTOR; ++e) n = CGAL::cross_product(v[(e + 1) % 3] - v[e], L - v[e]);
+        if (n == CGAL::NULL_VECTOR) return false;
+    }
+    // Angular extremes seen from L: every vertex on the inner side of the line from L
+    // through `lo` (turning one way about n), and of the line through `hi` (the other).
+    auto side = [&](int from, int k) { return CGAL::sign(n * CGAL::cross_product(v[from] - L, v[k] - L)); };
+    int lo = -1, hi = -1;
+    for (int i = 0; i < 3; ++i) {
+        bool allLeft = true, allRight = true;
+        for (int k = 0; k < 3; ++k) {
+            if (v[k] == L) return false;
+            const CGAL::Sign sk = side(i, k);
+            allLeft = allLeft && sk != CGAL::NEGATIVE;
+            allRight = allRight && sk != CGAL::POSITIVE;
+        }
+        if (allLeft && lo < 0) lo = i;
+        if (allRight && hi < 0) hi = i;
+    }
+    if (lo < 0 || hi < 0 || lo == hi) return false;  // the caster surrounds the light, or lies on one ray from it
+    auto grown = [&](const Vector& a) { return FT(dilation > 0 ? dilation * normUpper(a) : 0.0); };
+    const Vector wLo = CGAL::cross_product(n, v[lo] - L), wHi = CGAL::cross_product(n, v[hi] - L);
+    HalfSpace sLo{wLo, L, grown(wLo)}, sHi{wHi, L, grown(wHi)};
+    // Orient each wedge side towards the caster's other vertices (its interior).
+    for (int k = 0; k < 3; ++k) {
+        if (CGAL::sign(wLo * (v[k] - L)) == CGAL::NEGATIVE) sLo.n = -wLo;
+        if (CGAL::sign(wHi * (v[k] - L)) == CGAL::NEGATIVE) sHi.n = -wHi;
+    }
+    m.sides = {HalfSpace{n, v[0], grown(n)}, HalfSpace{-n, v[0], grown(n)}, sLo, sHi};
+    double dm = 0;
+    for (const Point& p : v) dm = std::max(dm, std::sqrt(CGAL::to_double(CGAL::squared_distance(p, L))));
+    m.dmax = dm * (1.0 + 1e-9) + 1e-300;
+    for (int k = 0; k < 3; ++k) {
+        const Point &p = v[k], &q = v[(k + 1) % 3], &r = v[(k + 2) % 3];
+        if (p == q) continue;
+        Vector mk = CGAL::cross_product(n, q - p);
+        const CGAL::Sign toR = CGAL::sign(mk * (r - p));
+        if (toR == CGAL::NEGATIVE) mk = -mk;
+        else if (toR == CGAL::ZERO && CGAL::sign(mk * (p - L)) == CGAL::NEGATIVE) mk = -mk;  // no area: away from L
+        const FT facing = mk * (p - L);
+        if (CGAL::sign(facing) != CGAL::POSITIVE) continue;  // the light does not enter by this edge
+        m.entries.push_back({mk, p, facing / FT(m.dmax), dilation > 0 ? dilation * normUpper(mk) : 0.0});
+    }
+    if (m.entries.empty()) return false;
+    // The near half-space: the first entry edge again (the opens need one).
+    const ExactFrustum::Impl::Entry& first = m.entries.front();
+    m.directional = false;
+    m.nearN = first.m;
+    m.nearO = L;
+    m.nearK = first.m * (first.e - L);
+    m.nearDilate = first.dilate;
+    return true;
+}
+
 }  // namespace
 
 ExactFrustum::ExactFrustum(const Triangle& t, const LightGeometry& light, double dilation) : impl_(std::make_unique<Impl>()) {
@@ -168,7 +235,7 @@ ExactFrustum::ExactFrustum(const Triangle& t, const LightGeometry& light, double
     const FT facing = light.directional ? n * d : n * (a - L);
     const CGAL::Sign s = CGAL::sign(facing);
     if (s == CGAL::ZERO) {
-        m.degenerate = !(light.directional && buildSheet(m, v, d, dilation));
+        m.degenerate = !(light.directional ? buildSheet(m, v, d, dilation) : buildPointSheet(m, v, L, dilation));
         return;
     }
     if (s == CGAL::NEGATIVE) n = -n;
@@ -213,51 +280,59 @@ ExactFrustum& ExactFrustum::operator=(ExactFrustum&&) noexcept = default;
 
 bool ExactFrustum::degenerate() const { return impl_->degenerate; }
 
+namespace {
+
+// True when the convex polygon `poly` (already inside every closed half-space of the
+// frustum) holds a point strictly inside all of `opens`: clipped by their closures, each
+// must keep some vertex strictly inside (then the vertices' mean is inside all of them).
+bool holdsStrictlyInside(std::vector<Point> poly, const std::vector<HalfSpace>& opens) {
+    for (const HalfSpace& h : opens) {
+        clip(poly, h);
+        if (poly.empty()) return false;
+    }
+    for (const HalfSpace& h : opens) {
+        bool strictly = false;
+        for (const Point& p : poly)
+            if (CGAL::sign(h(p)) == CGAL::POSITIVE) {
+                strictly = true;
+                break;
+            }
+        if (!strictly) return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+// The receiver clipped by the frustum's closed sides (empty: it misses them).
+std::vector<Point> ExactFrustum::Impl::insideSides(const Triangle& r) const {
+    for (const FastHalfSpace& f : fastSides)
+        if (f.rejects(r)) return {};  // clearly outside one side: no exact work needed
+    std::vector<Point> poly = {toPoint(r[0]), toPoint(r[1]), toPoint(r[2])};
+    for (const HalfSpace& h : sides) {
+        clip(poly, h);
+        if (poly.empty()) break;
+    }
+    return poly;
+}
+
+// The frustum's open half-spaces for bias `beta`: the near one, and a sheet's entry edges.
+std::vector<HalfSpace> ExactFrustum::Impl::opens(double beta) const {
+    const FT factor = directional ? FT(beta) : FT(1) + FT(beta) / FT(dmax);
+    std::vector<HalfSpace> out = {HalfSpace{nearN, nearO, FT(nearDilate) - factor * nearK}};
+    for (const Entry& e : entries) out.push_back(HalfSpace{e.m, e.e, FT(e.dilate) - FT(beta) * e.mDotD});
+    return out;
+}
+
 bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3, 2>* reachedPart) const {
     const Impl& m = *impl_;
     if (m.degenerate) {
         if (reachedPart) *reachedPart = {glm::min(glm::min(r[0], r[1]), r[2]), glm::max(glm::max(r[0], r[1]), r[2])};
         return true;
     }
-    for (const FastHalfSpace& f : m.fastSides)
-        if (f.rejects(r)) return false;  // clearly outside one side: no exact work needed
-    std::vector<Point> poly = {toPoint(r[0]), toPoint(r[1]), toPoint(r[2])};
-    for (const HalfSpace& h : m.sides) {
-        clip(poly, h);
-        if (poly.empty()) return false;
-    }
-    // Near half-space, open: some vertex of the clipped (convex) polygon strictly beyond.
-    const FT factor = m.directional ? FT(beta) : FT(1) + FT(beta) / FT(m.dmax);
-    const HalfSpace nearSide{m.nearN, m.nearO, FT(m.nearDilate) - factor * m.nearK};
-    bool reached = false;
-    if (m.entries.empty()) {
-        for (const Point& p : poly)
-            if (CGAL::sign(nearSide(p)) == CGAL::POSITIVE) {
-                reached = true;
-                break;
-            }
-    } else {
-        // Several open half-spaces (the near one and the entry edges): the polygon clipped
-        // by their closures holds a point strictly inside all of them exactly when, for
-        // each, some vertex is strictly inside (then the vertices' mean is inside all).
-        std::vector<HalfSpace> opens = {nearSide};
-        for (const Impl::Entry& e : m.entries) opens.push_back(HalfSpace{e.m, e.e, FT(e.dilate) - FT(beta) * e.mDotD});
-        std::vector<Point> inner = poly;
-        for (const HalfSpace& h : opens) {
-            clip(inner, h);
-            if (inner.empty()) break;
-        }
-        reached = !inner.empty();
-        for (size_t i = 0; reached && i < opens.size(); ++i) {
-            bool strictly = false;
-            for (const Point& p : inner)
-                if (CGAL::sign(opens[i](p)) == CGAL::POSITIVE) {
-                    strictly = true;
-                    break;
-                }
-            reached = strictly;
-        }
-    }
+    const std::vector<Point> poly = m.insideSides(r);
+    if (poly.empty()) return false;
+    const bool reached = holdsStrictlyInside(poly, m.opens(beta));
     if (reached && reachedPart) {
         glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
         for (const Point& p : poly) {
@@ -270,6 +345,38 @@ bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3
         *reachedPart = {lo, hi};
     }
     return reached;
+}
+
+bool ExactFrustum::reachesAboveGround(const Triangle& r, double beta, const std::vector<Triangle>& ground,
+                                      double tolerance) const {
+    const Impl& m = *impl_;
+    if (m.degenerate) return true;
+    const std::vector<Point> poly = m.insideSides(r);
+    if (poly.empty()) return false;
+    const std::vector<HalfSpace> opens = m.opens(beta);
+    const Vector up(0, 1, 0);
+    for (const Triangle& g : ground) {
+        const Point a = toPoint(g[0]), b = toPoint(g[1]), c = toPoint(g[2]);
+        const Point v[3] = {a, b, c};
+        // The plane, its normal turned up; "not deeper than the tolerance under it":
+        // n . (x - a) + tolerance * n.y >= 0 (n.y > 0; closed: at the limit q receives).
+        Vector n = CGAL::cross_product(b - a, c - a);
+        if (CGAL::sign(n.y()) == CGAL::ZERO) return true;  // vertical or no area: stay safe
+        if (CGAL::sign(n.y()) == CGAL::NEGATIVE) n = -n;
+        std::vector<Point> part = poly;
+        // The vertical prism over the triangle: three closed half-spaces through its edges.
+        for (int e = 0; e < 3 && !part.empty(); ++e) {
+            const Point& p = v[e];
+            const Point& q = v[(e + 1) % 3];
+            Vector side = CGAL::cross_product(q - p, up);  // horizontal, across the edge
+            if (CGAL::sign(side * (v[(e + 2) % 3] - p)) == CGAL::NEGATIVE) side = -side;
+            clip(part, HalfSpace{side, p, FT(0)});
+        }
+        if (part.empty()) continue;
+        clip(part, HalfSpace{n, a, FT(tolerance) * n.y()});
+        if (!part.empty() && holdsStrictlyInside(part, opens)) return true;
+    }
+    return false;
 }
 
 FrustumFilter::FrustumFilter(const Triangle& t, const LightGeometry& light, double dilation) : caster_(t), light_(light) {

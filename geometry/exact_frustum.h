@@ -19,6 +19,7 @@
 
 #include <array>
 #include <memory>
+#include <vector>
 
 #include <glm/vec3.hpp>
 
@@ -52,6 +53,17 @@ public:
     // true and `reachedPart` is given, it receives a box (rounded outward) holding every
     // point of the receiver inside the frustum's side half-spaces (for the terrain rule).
     bool reaches(const Triangle& receiver, double beta, std::array<glm::dvec3, 2>* reachedPart = nullptr) const;
+    // The terrain rule, exactly (issue 19): true when some point of `receiver` lies in the
+    // frustum (as reaches()) and is not deeper than `tolerance` (metres) under the ground,
+    // that is, lies in the vertical prism of one of the `ground` triangles (window-local,
+    // any winding, none vertical) and not more than `tolerance` below its plane. The
+    // caller passes every ground triangle over the part reaches() reported; points over no
+    // ground triangle would count as receiving, so the caller must also know the part is
+    // covered. Where several terrains overlap, a point above any of them counts (the
+    // lowest surface decides, as BakeWindow::lsTerrainHeight). Exact; a degenerate ground
+    // triangle makes it answer true (conservative).
+    bool reachesAboveGround(const Triangle& receiver, double beta, const std::vector<Triangle>& ground,
+                            double tolerance) const;
 
 private:
     std::unique_ptr<Impl> impl_;

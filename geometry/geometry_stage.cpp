@@ -263,6 +263,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     const FrustumFilter filter(t, lg, L.filterRadius);
                     std::optional<ShadowQuery> query;
                     if (!exhaustive) query.emplace(t, lg, L.filterRadius, margin);
+                    std::vector<Triangle> ground;  // terrain under a reached part (the terrain rule)
                     auto test = [&](uint32_t k, uint32_t tri) {
                         std::optional<Receiver> made;
                         const double beta = receiver(k, tri, made);
@@ -275,7 +276,31 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         if (!frustum->reaches(r.tri, beta, &part)) return false;
                         // The terrain rule on the part of the receiver the shadow reaches: a
                         // rock half in the ground receives only with its part above ground.
-                        candidate = !(window.hasTerrain && !r.terrain && underTerrain(window, part, margin));
+                        // The box of that part against the lowest sample first (cheap), then
+                        // exactly, the part against the terrain triangles over it (a slope
+                        // under a small box differs from its lowest sample by the cell's
+                        // relief, which left most terrains of a hilly map undecided).
+                        if (window.hasTerrain && !r.terrain) {
+                            if (underTerrain(window, part, margin)) return false;
+                            ground.clear();
+                            if (window.lsTerrainTrianglesOver(part[0].x, part[0].z, part[1].x, part[1].z, ground)) {
+                                // Only the ground triangles the part may lie over and not
+                                // wholly deeper than the tolerance under (both in double with
+                                // the margin: a triangle left out holds no point of the part,
+                                // or only points under it).
+                                const double tol = window.terrainTolerance;
+                                ground.erase(std::remove_if(ground.begin(), ground.end(),
+                                                            [&](const Triangle& g) {
+                                                                const Aabb gb = triangleBox(g);
+                                                                return gb.max.x < part[0].x - margin || gb.min.x > part[1].x + margin ||
+                                                                       gb.max.z < part[0].z - margin || gb.min.z > part[1].z + margin ||
+                                                                       part[1].y < gb.min.y - tol - margin;
+                                                            }),
+                                             ground.end());
+                                if (!frustum->reachesAboveGround(r.tri, beta, ground, tol)) return false;
+                            }
+                        }
+                        candidate = true;
                         if (candidate) {
                             const WindowObject& ro = window.objects[k];
                             auto corner = [&](const glm::dvec3& p) { return worldPoint(p, window.wsOrigin); };

@@ -64,15 +64,16 @@ TEST(Explain, CulledByGeometryShowsTheProof) {
 }
 
 // An undecided bit says what each stage saw: on the sample, the centre chunk's terrain
-// under the sun (a real hard case: a candidate receiver, no witness, and a stage that
-// does not examine terrains), so a user can tell it from a proof that is missing.
+// under the lamp (a real hard case: a candidate receiver, no witness, and a stage that
+// does not examine terrains), so a user can tell it from a proof that is missing. (Under
+// the sun the same terrain is now proved 0 by the exact terrain rule, issue 19.)
 TEST(Explain, UndecidedBitSaysWhatEachStageSaw) {
     const SpaceBuilder b = sampleSpace();
     const auto where = b.locateObjects();
-    const ExplainRun r = explain(b, "00000000o", "9", 1);
+    const ExplainRun r = explain(b, "00000000o", "9", 2);
     ASSERT_EQ(r.code, cli::kExitOk) << r.err;
     ASSERT_TRUE(has(r.out, "terrain #9")) << r.out;
-    EXPECT_TRUE(has(r.out, "light 1 'sun' (directional): bit 1, undecided, kept as 1 (no stage could decide)\n")) << r.out;
+    EXPECT_TRUE(has(r.out, "light 2 'lamp' (point): bit 1, undecided, kept as 1 (no stage could decide)\n")) << r.out;
     EXPECT_TRUE(has(r.out, "    raycast: no witness: of ")) << r.out;
     EXPECT_TRUE(has(r.out, "    geometry: could not exclude 00000000o.chunk model #")) << r.out;
     EXPECT_TRUE(has(r.out, "reaches it more than the bias behind, within (")) << r.out;

@@ -78,14 +78,24 @@ TEST(ExactFrustum, EdgeOnCasterCastsASheetAndFacingIsExact) {
     EXPECT_FALSE(sheet.reaches(beside, 0.0));
     EXPECT_TRUE(sheet.reaches(atFoot, 0.0));
     EXPECT_FALSE(sheet.reaches(atTop, 0.0));
-    // A triangle with collinear vertices casts a sheet too (here in the plane z = 0); a
-    // point light in a caster's plane leaves it degenerate (the caller keeps every nearby
-    // receiver).
+    // A triangle with collinear vertices casts a sheet too (here in the plane z = 0).
     const Triangle sliver = {glm::dvec3(0, 0, 0), glm::dvec3(0.5, 0, 0), glm::dvec3(1, 0, 0)};
     const Triangle under = {glm::dvec3(0.2, -1, -0.1), glm::dvec3(0.2, -1, 0.1), glm::dvec3(0.8, -1, -0.1)};
     EXPECT_TRUE(ExactFrustum(sliver, kDown, 0.0).reaches(under, 0.0));
     EXPECT_FALSE(ExactFrustum(sliver, kDown, 0.0).reaches(crossing, 0.0));
-    EXPECT_TRUE(ExactFrustum(wall, LightGeometry{false, {0, 0, 0}, {0, 5, 3}}, 0.0).degenerate());
+    // A point light in the caster's plane: a wedge in that plane, behind the caster as seen
+    // from the light (issue 18); degenerate only with the light on or inside the caster.
+    const ExactFrustum wedge(wall, LightGeometry{false, {0, 0, 0}, {0, 5, 3}}, 0.0);
+    EXPECT_FALSE(wedge.degenerate());
+    // From (0, 5, 3) through the wall the wedge continues below y = 0 towards -z.
+    const Triangle crossingBelow = {glm::dvec3(-1, -1, -0.5), glm::dvec3(-1, -1, 0.1), glm::dvec3(1, -1, -0.5)};
+    const Triangle crossingBeyondCone = {glm::dvec3(-1, -1, 1.2), glm::dvec3(-1, -1, 1.4), glm::dvec3(1, -1, 1.2)};
+    EXPECT_TRUE(wedge.reaches(crossingBelow, 0.0));
+    EXPECT_FALSE(wedge.reaches(crossingBeyondCone, 0.0));
+    EXPECT_FALSE(wedge.reaches(beside, 0.0));
+    EXPECT_FALSE(wedge.reaches(atTop, 0.0));
+    EXPECT_TRUE(ExactFrustum(wall, LightGeometry{false, {0, 0, 0}, {0, 0.2, 0.2}}, 0.0).degenerate());
+    EXPECT_TRUE(ExactFrustum(wall, LightGeometry{false, {0, 0, 0}, {0, 0.5, 0}}, 0.0).degenerate());
     const Triangle floorUp = {glm::dvec3(0, 0, 0), glm::dvec3(0, 0, 1), glm::dvec3(1, 0, 0)};
     const Triangle floorDown = {glm::dvec3(0, 0, 0), glm::dvec3(1, 0, 0), glm::dvec3(0, 0, 1)};
     EXPECT_EQ(geometry::exactFacing(floorUp, false, kDown), 1);
@@ -137,6 +147,35 @@ TEST(ExactFrustum, PointLightFrustumAndDilation) {
     EXPECT_FALSE(f.reaches(outside, 0.0));
     // A filter radius of 0.5 m reaches the triangle 0.1..0.2 m outside.
     EXPECT_TRUE(ExactFrustum(caster, lamp, 0.5).reaches(outside, 0.0));
+}
+
+// The exact terrain rule: a wall standing in the ground is reached by a caster's shadow
+// below and above the ground; only its part above the ground (or within the tolerance
+// under it) counts.
+TEST(ExactFrustum, ReachesAboveGroundCountsOnlyWhatIsNotBuried) {
+    const Triangle caster = {glm::dvec3(0, 2, 0), glm::dvec3(0, 2, 1), glm::dvec3(1, 2, 0)};
+    const ExactFrustum f(caster, kDown, 0.0);
+    // A wall across the column from y = -1 to y = 1 (front towards the light? two-sided
+    // here: the rule only asks where its points are).
+    const Triangle wall = {glm::dvec3(0.2, -1, 0.3), glm::dvec3(0.4, 1, 0.3), glm::dvec3(0.6, -1, 0.3)};
+    ASSERT_TRUE(f.reaches(wall, 0.0));
+    // Ground: two triangles of the plane y = h over [-5, 5]^2, wound either way.
+    auto ground = [](double h) {
+        return std::vector<Triangle>{{glm::dvec3(-5, h, -5), glm::dvec3(-5, h, 5), glm::dvec3(5, h, 5)},
+                                     {glm::dvec3(-5, h, -5), glm::dvec3(5, h, -5), glm::dvec3(5, h, 5)}};
+    };
+    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, ground(0.0), 0.0));    // its top half is above
+    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, ground(1.5), 0.0));   // all buried
+    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, ground(1.5), 0.49));  // deeper than the tolerance
+    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, ground(1.5), 0.51));   // its top within it
+    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, ground(1.0), 0.0));    // touching the surface counts
+    // The bias still applies: more than 2 m behind the caster (y = 2) is under the ground.
+    EXPECT_TRUE(f.reachesAboveGround(wall, 1.9, ground(0.0), 0.0));
+    EXPECT_FALSE(f.reachesAboveGround(wall, 2.0, ground(0.0), 0.0));
+    // Ground that does not lie under the reached part decides nothing (the caller checks
+    // coverage): here it is beside it, so no point is found above it.
+    const std::vector<Triangle> beside = {{glm::dvec3(3, 5, 3), glm::dvec3(3, 5, 4), glm::dvec3(4, 5, 3)}};
+    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, beside, 0.0));
 }
 
 // --- Scenes through the pipeline ----------------------------------------------------------
@@ -581,4 +620,48 @@ TEST(GeometryStage, FastPathEqualsTheExhaustiveReference) {
     // Both outcomes occur: the comparison covers proofs and bits left to the next stage.
     EXPECT_GT(allProved, 0u);
     EXPECT_GT(allUndecided, 0u);
+}
+
+// --- The terrain rule, exactly (issue 19) ---------------------------------------------------
+
+namespace {
+
+// Gentle hills (slopes up to 0.2, cells of 4 m) with 1 m rocks half-buried on the slopes,
+// under a 45-degree sun. A ray entering the ground can only leave it where the ground
+// falls away faster than the light (slope 1): never here. So the terrain's shadow reaches
+// only the rocks' buried sides, within a centimetre of the surface (the tolerance band)
+// only within ~1.2 cm of where the ray went in: less than the bias behind p.
+SpaceBuilder rocksOnHills(double bias) {
+    SpaceBuilder b;
+    LightSpec sun = LightSpec::directional("sun", {0.6, -1, 0.8});
+    sun.bias = bias;
+    b.addLight(sun);
+    const auto hills = [](double x, double z) { return 1.5 * std::sin(x / 12.0) + 1.2 * std::cos(z / 9.0); };
+    b.addTerrain(0, 0, 26, hills, -3.0, 3.0);
+    b.addMesh("rock", MeshSpec::box({-0.5, -0.5, -0.5}, {0.5, 0.5, 0.5}));
+    for (int k = 0; k < 12; ++k) {
+        const double x = 12.0 + 7.0 * k, z = 20.0 + 5.5 * (k % 7);
+        b.addModel("rock", Affine::rotationY(17.0 * k).then(Affine::translation({x, *b.terrainHeightAt(x, z), z})));
+    }
+    return b;
+}
+
+}  // namespace
+
+// With a bias, the terrain is a true 0 that the exact rule proves (the rocks' parts in its
+// shadow volume are deeper than the tolerance under the slopes); the box of such a part
+// against the lowest sample of its cell could not (a 4 m cell on a 0.2 slope spans 0.8 m).
+// Without bias, the band above the rocks' buried sides is a true receiver: never a 0.
+TEST(GeometryStage, TerrainRuleIsExactOnSlopes) {
+    for (double bias : {0.05, 0.0}) {
+        SCOPED_TRACE("bias " + std::to_string(bias));
+        SpaceBuilder b = rocksOnHills(bias);
+        const fs::path dir = freshTestDir(bias > 0 ? "-bias" : "-nobias");
+        cli::BakeResult r = bake(b, dir / "space");
+        const auto where = b.locateObjects();
+        const Decision* d = findDecision(r, where.at(SpaceBuilder::terrainKey(0, 0)), 0, 0);
+        ASSERT_NE(d, nullptr);
+        if (bias > 0) EXPECT_EQ(d->verdict, Verdict::Culled) << d->stage << ": " << d->reason();
+        else EXPECT_NE(d->verdict, Verdict::Culled) << d->reason();
+    }
 }
