@@ -253,4 +253,29 @@ Expected<std::unique_ptr<GlSession>> openGlSession() {
     return session;
 }
 
+GpuTimer::GpuTimer(const GlApi& gl) : gl_(gl), wallStart_(std::chrono::steady_clock::now()) {
+    GLint bits = 0;
+    gl_.GetQueryiv(GL_TIMESTAMP, GL_QUERY_COUNTER_BITS, &bits);
+    if (bits <= 0) return;
+    gl_.GenQueries(2, queries_);
+    gl_.QueryCounter(queries_[0], GL_TIMESTAMP);
+}
+
+GpuTimer::~GpuTimer() {
+    if (queries_[0]) gl_.DeleteQueries(2, queries_);
+}
+
+void GpuTimer::addTo(StageStats& stats) {
+    if (!queries_[0]) return;
+    gl_.QueryCounter(queries_[1], GL_TIMESTAMP);
+    GLuint64 t0 = 0, t1 = 0;
+    gl_.GetQueryObjectui64v(queries_[0], GL_QUERY_RESULT, &t0);
+    gl_.GetQueryObjectui64v(queries_[1], GL_QUERY_RESULT, &t1);
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart_).count();
+    const double gpu = t1 >= t0 ? double(t1 - t0) * 1e-9 : -1.0;
+    if (gpu < 0.0 || gpu > wall) return;
+    stats.gpuSeconds += gpu;
+    stats.gpuTimed = true;
+}
+
 }  // namespace shadowcull::gpu
