@@ -367,7 +367,8 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
         opt.gpuBaseline = true;
         opt.gpuResolution = o.gpuBaselineResolution;
     }
-    if (!o.glBackend.empty()) gpu::setGlChoice({*gpu::parseGlBackend(o.glBackend), -1});
+    // The device, if any, from SHADOWCULL_GL_DEVICE (as for the CLI's --gl-device).
+    if (!o.glBackend.empty()) gpu::setGlChoice({*gpu::parseGlBackend(o.glBackend), gpu::glChoice().device});
     const std::vector<std::pair<int, int>> all = gridChunks(spec);
     if (o.maxChunks > 0 && size_t(o.maxChunks) < all.size()) {
         // Evenly spread over the grid (every k-th chunk in row-major order).
@@ -725,10 +726,10 @@ void printGpuBaseline(const std::vector<WorldRun>& runs) {
 // backend's, bit by bit.
 int runBackends(const std::vector<WorldRun>& runs, const Options& o) {
     std::printf("\n## GPU stages per OpenGL backend\n\n");
-    std::printf("One child process per bake; GPU time is the GL_TIME_ELAPSED sum of the stage's passes. Verdicts: bits "
-                "that differ from the first backend's bake of the same kind.\n\n");
-    std::printf("| world | backend | OpenGL (backend: vendor, renderer, version) | bake | gpu stage wall s | GPU time s | GPU "
-                "passes | bake total s | verdicts vs first |\n|---|---|---|---|---:|---:|---:|---:|---|\n");
+    std::printf("One child process per bake; GPU time: GL_TIMESTAMP queries around each chunk's GPU work, summed. Verdicts: "
+                "bits that differ from the first backend's bake of the same kind.\n\n");
+    std::printf("| world | chunks | backend | OpenGL (backend: vendor, renderer, version) | bake | gpu stage wall s | GPU time s | "
+                "GPU passes | bake total s | verdicts vs first |\n|---|---:|---|---|---|---:|---:|---:|---:|---|\n");
     bool allSame = true;
     for (const WorldRun& w : runs) {
         for (const bool method : {false, true}) {
@@ -746,7 +747,7 @@ int runBackends(const std::vector<WorldRun>& runs, const Options& o) {
                 json b;
                 const char* kind = method ? "GPU method" : "pipeline";
                 if (!job.ok || !readJson(out, b)) {
-                    std::printf("| %s | %s | failed (%s) | %s | | | | | |\n", w.spec.name.c_str(), backend.c_str(),
+                    std::printf("| %s | | %s | failed (%s) | %s | | | | | |\n", w.spec.name.c_str(), backend.c_str(),
                                 job.failure.empty() ? "no results" : job.failure.c_str(), kind);
                     continue;
                 }
@@ -774,7 +775,8 @@ int runBackends(const std::vector<WorldRun>& runs, const Options& o) {
                     allSame = allSame && differ == 0;
                 }
                 const std::string gl = b.value("gl", std::string());
-                std::printf("| %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", w.spec.name.c_str(), backend.c_str(),
+                std::printf("| %s | %s of %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", w.spec.name.c_str(),
+                            count(b["chunksBaked"].get<uint64_t>()).c_str(), count(b["chunksTotal"].get<uint64_t>()).c_str(), backend.c_str(),
                             gl.empty() ? "none (GPU stages skipped)" : gl.c_str(), kind, seconds(wall).c_str(),
                             timed ? seconds(gpuTime).c_str() : "n/a", count(passes).c_str(),
                             seconds(b["totalSeconds"].get<double>()).c_str(), verdicts.c_str());

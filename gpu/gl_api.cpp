@@ -81,7 +81,7 @@ Status GlApi::load(const GlContext& context) {
     SHADOWCULL_GL_FUNCTIONS(SHADOWCULL_GL_LOAD)
 #undef SHADOWCULL_GL_LOAD
     // Count the objects made and deleted (see liveGlObjects), when this context's entry
-    // points are the library's first ones (always, with one OSMesa).
+    // points are the library's first ones (always, with one backend per process).
     std::call_once(libraryLoaded, [&] {
 #define SHADOWCULL_GL_KEEP(name) library.name = name;
         SHADOWCULL_GL_COUNTED(SHADOWCULL_GL_KEEP)

@@ -6,7 +6,7 @@
 namespace shadowcull::gpu::backends {
 
 Expected<std::unique_ptr<GlContext>> createOsMesaContext(int, int) {
-    return makeError(ErrorKind::Internal, "", 0, "this build has no OSMesa (libosmesa6-dev was not installed)");
+    return makeError(ErrorKind::Internal, "", 0, "this build has no OSMesa (pkg-config found no osmesa, or -DSHADOWCULL_WITHOUT_OSMESA=ON)");
 }
 
 }  // namespace shadowcull::gpu::backends

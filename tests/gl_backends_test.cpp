@@ -3,6 +3,9 @@
 // and a generated world) baked on every backend this machine has, by both methods, with
 // every verdict compared (the CLI in a child process per bake, as a user runs it).
 
+#include <sys/wait.h>
+
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -94,6 +97,33 @@ TEST(GlBackends, AutoPrefersEglAndNeverTakesTheSoftwareDeviceForAGpu) {
     }
 }
 
+// A machine whose libEGL has no vendor (libglvnd pointed at a missing vendor file): auto
+// falls through to OSMesa, --gl egl gives no context, and both say what each EGL step
+// answered.
+TEST(GlBackends, WithoutEglAutoFallsThroughAndSaysWhatItTried) {
+    const fs::path dir = freshTestDir("gl-no-egl");
+    const std::string noEgl = "__EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/egl_vendor.json SHADOWCULL_GL= ";
+    auto run = [&](const std::string& args) {
+        const std::string cmd = noEgl + SHADOWCULL_BIN + " " + args + " > '" + (dir / "o").string() + "' 2> '" +
+                                (dir / "e").string() + "'";
+        const int rc = std::system(cmd.c_str());
+        return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+    };
+    ASSERT_EQ(run("--version"), 0) << readText(dir / "e");
+    const std::string version = readText(dir / "o");
+    EXPECT_NE(version.find("  EGL surfaceless: unavailable ("), std::string::npos) << version;
+    std::string why;
+    const bool osmesa = contextOn(gpu::GlBackend::OsMesa, why) != nullptr;
+    EXPECT_NE(version.find(osmesa ? "OpenGL: OSMesa: " : "OpenGL: none ("), std::string::npos) << version;
+    // --gl egl: the GPU stage is skipped with a note naming both EGL steps, never OSMesa.
+    const std::string space = (fs::path(SHADOWCULL_SOURCE_DIR) / "data" / "sample").string();
+    ASSERT_EQ(run("bake '" + space + "' --dry-run -q --gl egl"), 0) << readText(dir / "e");
+    const std::string note = readText(dir / "e");
+    EXPECT_NE(note.find("gpu stage skipped: no offscreen OpenGL context: EGL device: "), std::string::npos) << note;
+    EXPECT_NE(note.find("; EGL surfaceless: "), std::string::npos) << note;
+    EXPECT_EQ(note.find("OSMesa"), std::string::npos) << note;
+}
+
 // Both backends alive in one process, used in turns: each context's own entry points
 // while it is current (see docs/design.md, "OpenGL backends": Mesa's EGL and OSMesa share
 // libglapi's dispatch, libEGL's entry points go through libglvnd's).
@@ -143,6 +173,9 @@ struct SceneCase {
     std::string name;    // test name suffix
     std::string method;  // "analytic" or "gpu"
 };
+
+// "world gpu" in test names and failures, not the struct's bytes.
+void PrintTo(const SceneCase& c, std::ostream* os) { *os << c.name << " " << c.method; }
 
 // The scene's space directory: the sample as shipped, or a small generated forest world
 // (bench/world_gen: terrain, trees with alpha canopies, rocks, buildings, props, three
