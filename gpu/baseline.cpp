@@ -74,7 +74,7 @@ struct GpuBaselineMethod::Gl {
 GpuBaselineMethod::GpuBaselineMethod(GpuBaselineOptions options) : options_(options) {}
 GpuBaselineMethod::~GpuBaselineMethod() = default;  // destroying the context frees its objects
 
-std::string GpuBaselineMethod::glDescription() const { return gl_ ? gl_->session->context->description() : std::string(); }
+std::string GpuBaselineMethod::glDescription() const { return gl_ ? gl_->session->context->report() : std::string(); }
 
 Status GpuBaselineMethod::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();

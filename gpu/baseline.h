@@ -58,7 +58,7 @@ public:
     GpuBaselineMethod& operator=(const GpuBaselineMethod&) = delete;
 
     const char* name() const override { return kStageName; }
-    // The backend, GL_VENDOR, GL_RENDERER and GL_VERSION the passes ran on ("" before the
+    // GlContext::report() of the context the passes ran on ("" before the
     // first run that needed them).
     std::string glDescription() const;
     // Decides every undecided bit of the centre chunk (see above). The OpenGL context is

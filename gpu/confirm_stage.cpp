@@ -482,7 +482,7 @@ struct GpuConfirmStage::LightWork {
 GpuConfirmStage::GpuConfirmStage(GpuConfirmOptions options) : options_(options) {}
 GpuConfirmStage::~GpuConfirmStage() = default;  // destroying the context frees its objects
 
-std::string GpuConfirmStage::glDescription() const { return gl_ ? gl_->session->context->description() : std::string(); }
+std::string GpuConfirmStage::glDescription() const { return gl_ ? gl_->session->context->report() : std::string(); }
 
 Status GpuConfirmStage::ensureGl() {
     if (gl_) return gl_->session->makeCurrent();

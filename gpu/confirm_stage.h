@@ -100,7 +100,7 @@ public:
     GpuConfirmStage& operator=(const GpuConfirmStage&) = delete;
 
     const char* name() const override { return "gpu"; }
-    // The backend, GL_VENDOR, GL_RENDERER and GL_VERSION the passes ran on ("" before the
+    // GlContext::report() of the context the passes ran on ("" before the
     // first run that needed them).
     std::string glDescription() const;
     // Looks only at undecided bits; culls those it proves 0 (stage "gpu"), leaves the rest

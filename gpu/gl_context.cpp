@@ -129,12 +129,18 @@ Expected<std::unique_ptr<GlContext>> createOffscreenContext(int width, int heigh
         if (device) return device;
         note("EGL device", device.error());
         Expected<std::unique_ptr<GlContext>> surfaceless = backends::createEglSurfacelessContext();
-        if (surfaceless) return surfaceless;
+        if (surfaceless) {
+            (*surfaceless)->setPassedOver(tried);
+            return surfaceless;
+        }
         note("EGL surfaceless", surfaceless.error());
     }
     if (choice.backend != GlBackend::Egl) {
         Expected<std::unique_ptr<GlContext>> osmesa = backends::createOsMesaContext(width, height);
-        if (osmesa) return osmesa;
+        if (osmesa) {
+            (*osmesa)->setPassedOver(tried);
+            return osmesa;
+        }
         note("OSMesa", osmesa.error());
     }
     return fail(tried);

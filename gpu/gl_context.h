@@ -38,6 +38,15 @@ public:
     const std::string& vendor() const { return vendor_; }
     const std::string& renderer() const { return renderer_; }
     const std::string& version() const { return version_; }
+    // What the choice tried before this backend, and why each failed ("EGL device: no
+    // hardware device (1 found: 0 software)"); "" when the first try gave this context.
+    const std::string& passedOver() const { return passedOver_; }
+    void setPassedOver(std::string tried) { passedOver_ = std::move(tried); }
+    // The "OpenGL:" line of the reports: description(), then what auto passed over, so a
+    // machine whose GPU was expected but not used says why.
+    std::string report() const {
+        return passedOver_.empty() ? description() : description() + " (passed over: " + passedOver_ + ")";
+    }
 
     // Makes the context current, reads GL_VENDOR / GL_RENDERER / GL_VERSION and refuses a
     // GL older than 4.3 (the passes use storage buffers in fragment shaders). Called once
@@ -45,7 +54,7 @@ public:
     Status identify(std::string backend);
 
 private:
-    std::string backend_, vendor_, renderer_, version_;
+    std::string backend_, vendor_, renderer_, version_, passedOver_;
 };
 
 // Which backend createOffscreenContext uses. Auto: a hardware EGL device, then Mesa's

@@ -89,6 +89,11 @@ TEST(GlBackends, AutoPrefersEglAndNeverTakesTheSoftwareDeviceForAGpu) {
     if (egl) {
         EXPECT_EQ(chosen->backend(), egl->backend());
     }
+    // What auto passed over is kept for the reports: surfaceless comes after the devices.
+    if (chosen->backend() == "EGL surfaceless") {
+        EXPECT_EQ(chosen->passedOver().rfind("EGL device: ", 0), 0u) << chosen->passedOver();
+        EXPECT_NE(chosen->report().find(" (passed over: EGL device: "), std::string::npos) << chosen->report();
+    }
     // Mesa's software device (llvmpipe) is listed, but auto goes to surfaceless for it.
     for (const std::string& line : gpu::listGlBackends()) {
         if (line.find("[software]") != std::string::npos) {
@@ -115,6 +120,9 @@ TEST(GlBackends, WithoutEglAutoFallsThroughAndSaysWhatItTried) {
     std::string why;
     const bool osmesa = contextOn(gpu::GlBackend::OsMesa, why) != nullptr;
     EXPECT_NE(version.find(osmesa ? "OpenGL: OSMesa: " : "OpenGL: none ("), std::string::npos) << version;
+    if (osmesa) {
+        EXPECT_NE(version.find("(passed over: EGL device: "), std::string::npos) << version;
+    }
     // --gl egl: the GPU stage is skipped with a note naming both EGL steps, never OSMesa.
     const std::string space = (fs::path(SHADOWCULL_SOURCE_DIR) / "data" / "sample").string();
     ASSERT_EQ(run("bake '" + space + "' --dry-run -q --gl egl"), 0) << readText(dir / "e");
