@@ -6,7 +6,7 @@
 //   bake_bench [--sizes S,M,L,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N]
 //              [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]
 //              [--cross-check] [--no-gpu] [--gpu-baseline S,M,L|none] [--gpu-res N]
-//              [--gen-only] [--json FILE]
+//              [--gen-only] [--json FILE] [--gl auto,egl,osmesa]
 //
 // Each world is generated once into the work directory, keyed by a hash of its spec and
 // the generator version, and reused by later runs. Generation, each bake and each Embree
@@ -40,6 +40,7 @@
 #include "bench/world_gen.h"
 #include "cli/pipeline.h"
 #include "cli/report.h"
+#include "gpu/gl_context.h"
 #include "tests/support/space_builder.h"
 
 namespace shadowcull::bench {
@@ -78,6 +79,9 @@ struct Options {
     std::vector<std::string> gpuBaselineSizes{"M"};  // worlds the original GPU method is run on
     int gpuBaselineResolution = 2048;
     std::string jsonOut;         // all figures as JSON
+    // --gl: only the GPU stages, once per OpenGL backend, side by side (printBackends).
+    std::vector<std::string> glBackends;
+    std::string glBackend;       // the backend a child bakes on ("": the default, auto)
 };
 
 [[noreturn]] void usage(const char* why) {
@@ -86,7 +90,7 @@ struct Options {
                  "usage: bake_bench [--sizes S,M,L,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N]\n"
                  "                  [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]\n"
                  "                  [--cross-check] [--no-gpu] [--gpu-baseline S,M,L|none] [--gpu-res N]\n"
-                 "                  [--gen-only] [--json FILE]\n",
+                 "                  [--gen-only] [--json FILE] [--gl auto,egl,osmesa]\n",
                  why);
     std::exit(2);
 }
@@ -147,6 +151,12 @@ Options parseArgs(int argc, char** argv) {
             if (o.gpuBaselineResolution < 1) usage("--gpu-res must be positive");
         } else if (a == "--gen-only" || a == "--generate-only") {
             o.genOnly = true;
+        } else if (a == "--gl") {
+            std::stringstream ss(value());
+            for (std::string b; std::getline(ss, b, ',');) {
+                if (!gpu::parseGlBackend(b)) usage(("unknown OpenGL backend " + b + " (auto, egl, osmesa)").c_str());
+                o.glBackends.push_back(b);
+            }
         } else if (a == "--json") {
             o.jsonOut = value();
         } else if (a == "-h" || a == "--help") {
@@ -357,6 +367,8 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
         opt.gpuBaseline = true;
         opt.gpuResolution = o.gpuBaselineResolution;
     }
+    // The device, if any, from SHADOWCULL_GL_DEVICE (as for the CLI's --gl-device).
+    if (!o.glBackend.empty()) gpu::setGlChoice({*gpu::parseGlBackend(o.glBackend), gpu::glChoice().device});
     const std::vector<std::pair<int, int>> all = gridChunks(spec);
     if (o.maxChunks > 0 && size_t(o.maxChunks) < all.size()) {
         // Evenly spread over the grid (every k-th chunk in row-major order).
@@ -413,6 +425,8 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
                           {"raysCast", s.raysCast},
                           {"exactTests", s.exactTests},
                           {"gpuPasses", s.gpuPasses},
+                          {"gpuSeconds", s.gpuSeconds},
+                          {"gpuTimed", s.gpuTimed},
                           {"provedKept", s.provedKept},
                           {"provedCulled", s.provedCulled}});
     }
@@ -440,6 +454,7 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
                           {"counts", perLight[l]}});
     j["lights"] = lights;
     j["notes"] = r->notes;
+    j["gl"] = r->gl;
     j["gpuResolution"] = opt.gpuResolution;
     j["warnings"] = r->diagnostics.size();
     json first = json::array();
@@ -578,6 +593,14 @@ void printWorlds(const std::vector<WorldRun>& runs) {
     }
 }
 
+// "1,234 (GPU 2.10 s)": a stage's GPU passes and, where the driver has timer queries,
+// their GL_TIME_ELAPSED sum.
+std::string gpuCell(const json& stage) {
+    std::string c = count(stage.value("gpuPasses", uint64_t(0)));
+    if (stage.value("gpuTimed", false)) c += " (GPU " + seconds(stage["gpuSeconds"].get<double>()) + " s)";
+    return c;
+}
+
 void printBake(const WorldRun& w) {
     const json& b = w.bake;
     const double chunks = b["chunksBaked"].get<double>();
@@ -600,7 +623,7 @@ void printBake(const WorldRun& w) {
         std::printf("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", s["name"].get<std::string>().c_str(),
                     seconds(sec).c_str(), seconds(sec / chunks).c_str(), rays ? count(rays).c_str() : "0",
                     rays && sec > 0 ? rate(double(rays) / sec).c_str() : "", count(s["exactTests"].get<uint64_t>()).c_str(),
-                    count(s.value("gpuPasses", uint64_t(0))).c_str(), count(s["bitsExamined"].get<uint64_t>()).c_str(), count(s["provedCulled"].get<uint64_t>()).c_str(),
+                    gpuCell(s).c_str(), count(s["bitsExamined"].get<uint64_t>()).c_str(), count(s["provedCulled"].get<uint64_t>()).c_str(),
                     count(s["provedKept"].get<uint64_t>()).c_str());
     }
     // The original GPU method runs as its own bake (printGpuBaseline).
@@ -632,6 +655,7 @@ void printBake(const WorldRun& w) {
     if (w.partial())
         std::printf(" Projected full bake: %s s (%s s per chunk x %s chunks).", seconds(w.projectedTotal()).c_str(),
                     seconds(w.perChunk()).c_str(), count(b["chunksTotal"].get<uint64_t>()).c_str());
+    if (!b.value("gl", std::string()).empty()) std::printf(" OpenGL: %s.", b["gl"].get<std::string>().c_str());
     for (const json& n : b.value("notes", json::array())) std::printf(" Note: %s.", n.get<std::string>().c_str());
     if (b["warnings"].get<uint64_t>() > 0) {
         std::printf(" **%s input warnings**, first:", count(b["warnings"].get<uint64_t>()).c_str());
@@ -694,6 +718,73 @@ void printGpuBaseline(const std::vector<WorldRun>& runs) {
     }
 }
 
+
+// --gl: the GPU stages of each world on each OpenGL backend, one child process per bake
+// (a backend per process: see docs/design.md, "OpenGL backends"): the pipeline with its
+// GPU confirmation, and the original GPU method where --gpu-baseline names the world.
+// Wall and GPU (GL_TIME_ELAPSED) seconds side by side; verdicts compared with the first
+// backend's, bit by bit.
+int runBackends(const std::vector<WorldRun>& runs, const Options& o) {
+    std::printf("\n## GPU stages per OpenGL backend\n\n");
+    std::printf("One child process per bake; GPU time: GL_TIMESTAMP queries around each chunk's GPU work, summed. Verdicts: "
+                "bits that differ from the first backend's bake of the same kind.\n\n");
+    std::printf("| world | chunks | backend | OpenGL (backend: vendor, renderer, version) | bake | gpu stage wall s | GPU time s | "
+                "GPU passes | bake total s | verdicts vs first |\n|---|---:|---|---|---|---:|---:|---:|---:|---|\n");
+    bool allSame = true;
+    for (const WorldRun& w : runs) {
+        for (const bool method : {false, true}) {
+            if (method && std::find(o.gpuBaselineSizes.begin(), o.gpuBaselineSizes.end(), w.spec.name) == o.gpuBaselineSizes.end())
+                continue;
+            std::string firstBits;
+            for (const std::string& backend : o.glBackends) {
+                Options child = o;
+                child.glBackend = backend;
+                const fs::path out = o.work / ("gl-" + w.spec.name + (method ? "-gpu-method-" : "-bake-") + backend + ".json");
+                std::error_code ec;
+                fs::remove(out, ec);
+                std::fprintf(stderr, "[%s] %s on --gl %s ...\n", w.spec.name.c_str(), method ? "GPU method" : "bake", backend.c_str());
+                const Job job = runJob(o.fork, [&] { return bakeChild(w.spec, w.dir, child, out, method); });
+                json b;
+                const char* kind = method ? "GPU method" : "pipeline";
+                if (!job.ok || !readJson(out, b)) {
+                    std::printf("| %s | | %s | failed (%s) | %s | | | | | |\n", w.spec.name.c_str(), backend.c_str(),
+                                job.failure.empty() ? "no results" : job.failure.c_str(), kind);
+                    continue;
+                }
+                double wall = 0, gpuTime = 0;
+                bool timed = false;
+                uint64_t passes = 0;
+                for (const json& st : b["stages"]) {
+                    if (st.value("gpuPasses", uint64_t(0)) == 0 && !st.value("gpuTimed", false)) continue;
+                    wall += st["seconds"].get<double>();
+                    gpuTime += st.value("gpuSeconds", 0.0);
+                    timed = timed || st.value("gpuTimed", false);
+                    passes += st.value("gpuPasses", uint64_t(0));
+                }
+                std::ifstream in(out.string() + ".bits", std::ios::binary);
+                const std::string bits((std::istreambuf_iterator<char>(in)), {});
+                std::string verdicts = "(first)";
+                if (firstBits.empty()) {
+                    firstBits = bits;
+                } else if (bits.size() != firstBits.size()) {
+                    verdicts = "**table size differs**", allSame = false;
+                } else {
+                    uint64_t differ = 0;
+                    for (size_t k = 0; k < bits.size(); ++k) differ += bits[k] != firstBits[k];
+                    verdicts = differ ? "**" + count(differ) + " differ**" : "identical";
+                    allSame = allSame && differ == 0;
+                }
+                const std::string gl = b.value("gl", std::string());
+                std::printf("| %s | %s of %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", w.spec.name.c_str(),
+                            count(b["chunksBaked"].get<uint64_t>()).c_str(), count(b["chunksTotal"].get<uint64_t>()).c_str(), backend.c_str(),
+                            gl.empty() ? "none (GPU stages skipped)" : gl.c_str(), kind, seconds(wall).c_str(),
+                            timed ? seconds(gpuTime).c_str() : "n/a", count(passes).c_str(),
+                            seconds(b["totalSeconds"].get<double>()).c_str(), verdicts.c_str());
+            }
+        }
+    }
+    return allSame ? 0 : 1;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -721,6 +812,7 @@ int main(int argc, char** argv) {
         printWorlds(runs);
         return 0;
     }
+    if (!o.glBackends.empty()) return runBackends(runs, o);
 
     // 1. The analytic bakes, one after the other (and M again right after L), so that the
     // figures compared across worlds are measured close together in time; 2. the baselines.

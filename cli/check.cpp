@@ -93,6 +93,7 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
     }
     out << "bits " << bits << "; GPU method at " << options.gpuResolution << ": " << falseCulls << " false culls, "
         << falseKeeps << " false keeps; " << undecided << " bits undecided by the analytic pipeline\n";
+    if (!g->gl.empty()) out << "OpenGL: " << g->gl << "\n";
     if (!lines.empty()) out << "disagreements:\n" << lines;
 
     if (options.pictures && !pictures.empty()) {

@@ -23,6 +23,7 @@
 #include "cli/sweep.h"
 #include "cli/usage.h"
 #include "core/limits.h"
+#include "gpu/gl_context.h"
 #include "gpu/render.h"
 
 using namespace shadowcull;
@@ -88,6 +89,22 @@ int runBakeCommand(const BakeOptions& opt, bool quiet) {
     for (const std::string& n : r->notes) std::fprintf(stderr, "shadowcull: note: %s\n", n.c_str());
     if (!quiet) std::fputs(formatSummary(*r, opt.write).c_str(), stdout);
     return r->diagnostics.empty() ? kExitOk : kExitSkippedInput;
+}
+
+// --gl / --gl-device: the OpenGL backend of the GPU stages, for the commands that run
+// them. Starts from SHADOWCULL_GL / SHADOWCULL_GL_DEVICE (gpu::glChoice()).
+struct GlFlags {
+    std::string backend = gpu::glBackendName(gpu::glChoice().backend);
+    int device = gpu::glChoice().device;
+};
+
+void addGlOptions(CLI::App* command, GlFlags& flags) {
+    command->add_option("--gl", flags.backend,
+                        "OpenGL backend of the GPU stages: auto (default: an EGL GPU device, then EGL surfaceless, "
+                        "then OSMesa), egl or osmesa")
+        ->check(oneOf({"auto", "egl", "osmesa"}));
+    command->add_option("--gl-device", flags.device, "EGL device to render on (numbered as 'shadowcull --version' lists them)")
+        ->check(atLeast(0));
 }
 
 }  // namespace
@@ -225,6 +242,9 @@ int main(int argc, char** argv) {
     exportCmd->add_option("--gltf", exportOpt.scenePath, "The scene the space was imported from")->required()->check(existingFile());
     exportCmd->add_option("--out", exportOpt.outPath, "The copy to write (.glb for a .glb scene, .gltf for a .gltf scene)")->required();
 
+    GlFlags glFlags;
+    for (CLI::App* command : {bake, sweep, check, render}) addGlOptions(command, glFlags);
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::Success& e) {  // --help, --version
@@ -233,6 +253,11 @@ int main(int argc, char** argv) {
         app.exit(e);
         return kExitUsage;
     }
+    if (glFlags.backend == "osmesa" && glFlags.device >= 0) {
+        std::fputs(formatParseFailure(&app, CLI::ValidationError("--gl-device", "names an EGL device; --gl osmesa has none")).c_str(), stderr);
+        return kExitUsage;
+    }
+    gpu::setGlChoice({*gpu::parseGlBackend(glFlags.backend), glFlags.device});
     opt.raycast.threads = opt.threads;
     opt.useRaycast = std::find(stageNames.begin(), stageNames.end(), "raycast") != stageNames.end();
     opt.useGeometry = std::find(stageNames.begin(), stageNames.end(), "geometry") != stageNames.end();

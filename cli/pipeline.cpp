@@ -168,6 +168,11 @@ StageRunner::StageRunner(const BakeOptions& opt)
     witnessBaselineCulls_ = opt.gpuBaseline && opt.witnessBaselineCulls;
 }
 
+std::string StageRunner::glDescription() const {
+    const std::string confirm = confirm_.glDescription();
+    return confirm.empty() ? baseline_.glDescription() : confirm;
+}
+
 std::vector<StageTiming> StageRunner::timings() const {
     std::vector<StageTiming> t;
     for (Stage* s : stages_) t.push_back({s->name(), {}});
@@ -230,6 +235,7 @@ Expected<ChunkBake> bakeChunk(const BakeOptions& opt, ChunkCoord chunk) {
     if (Status s = runner.bake(out.window, out.verdicts, out.stages); !s) return s.error();
     out.verdicts.simulated = simulatedEffects(out.window, out.verdicts);
     out.notes = runner.notes();
+    out.gl = runner.glDescription();
     return out;
 }
 
@@ -556,6 +562,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
                     " of the bits it wrote 0 here have a witness ray (a shadow that is seen)";
         result.notes.push_back(note + "; 'shadowcull check " + opt.spaceDir + "' lists every such bit");
     }
+    result.gl = runner.glDescription();
     result.totalSeconds = since(t0);
     return result;
 }

@@ -76,6 +76,7 @@ struct BakeResult {
     int chunksWritten = 0;
     int chunksResumed = 0;  // skipped by --resume: unchanged since the last bake
     std::vector<std::string> notes;  // what the bake did differently from what was asked
+    std::string gl;                  // the OpenGL context the GPU stages ran on, "" if none ran
 };
 
 // The stages a bake runs, in order, made once per bake from its options (the GPU stages
@@ -93,6 +94,8 @@ public:
     // With witnessBaselineCulls: bits the baseline culled for which a witness ray was
     // found so far (false culls; the verdicts written are the baseline's all the same).
     uint64_t baselineCullsWitnessed() const { return baselineCullsWitnessed_; }
+    // The backend, GL_VENDOR, GL_RENDERER and GL_VERSION the GPU stages ran on ("" if none ran).
+    std::string glDescription() const;
 
 private:
     ReachStage reach_;
@@ -118,6 +121,7 @@ struct ChunkBake {
     ChunkVerdicts verdicts;
     std::vector<StageTiming> stages;
     std::vector<std::string> notes;
+    std::string gl;  // the OpenGL context the GPU stages ran on, "" if none ran
 };
 Expected<ChunkBake> bakeChunk(const BakeOptions& options, ChunkCoord chunk);
 

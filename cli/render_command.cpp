@@ -49,6 +49,7 @@ int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err
         << r->culled << " culled, " << r->kept << " kept, " << r->undecided << " undecided";
     if (r->outsideFrame) out << ", " << r->outsideFrame << " outside the frame";
     out << "\n";
+    out << "OpenGL: " << r->gl << "\n";
     return kExitOk;
 }
 

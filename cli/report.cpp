@@ -82,8 +82,10 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
         if (st.stats.raysCast) s += " (" + std::to_string(st.stats.raysCast) + " rays)";
         if (st.stats.exactTests) s += " (" + std::to_string(st.stats.exactTests) + " exact tests)";
         if (st.stats.gpuPasses) s += " (" + std::to_string(st.stats.gpuPasses) + " passes)";
+        if (st.stats.gpuTimed) s += " (GPU time " + fmt("%.2f s", st.stats.gpuSeconds) + ")";
     }
     s += ", write " + fmt("%.2f s", r.writeSeconds) + ", total " + fmt("%.2f s", r.totalSeconds) + "\n";
+    if (!r.gl.empty()) s += "OpenGL: " + r.gl + "\n";
     return s;
 }
 

@@ -120,6 +120,7 @@ Expected<std::vector<SweepRow>> runSweep(const SweepOptions& options, const std:
         if (!r) return r.error();
         SweepRow row;
         row.setting = s.name;
+        row.gl = r->gl;
         row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         say(std::to_string(rows.size() + 1) + "/" + std::to_string(ladder.size()) + " " + s.name + ": " +
             formatNumber(std::round(row.seconds * 100) / 100) + " s");
@@ -152,6 +153,11 @@ int reportSweep(const SweepOptions& options, const std::vector<SweepRow>& rows, 
     out << "\nReference: every analytic stage (GPU confirmation at 2048 px) at " << options.referenceSamples
         << " samples per group. False cull: written 0 where the reference has a witness. False keep: written 1 where "
            "the reference proved 0. Bits the reference could not decide are counted apart.\n";
+    for (const SweepRow& r : rows)
+        if (!r.gl.empty()) {
+            out << "OpenGL (GPU settings): " << r.gl << "\n";
+            break;
+        }
     // Written whole or not at all (a temporary beside it, renamed); a failure says why.
     if (!options.csvPath.empty()) {
         std::ostringstream csv;

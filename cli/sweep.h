@@ -30,6 +30,7 @@ struct SweepRow {
     uint64_t falseCulls = 0;       // 0 where the reference has a witness
     uint64_t falseKeeps = 0;       // 1 where the reference proved 0
     uint64_t referenceUndecided = 0;  // bits the reference left undecided (neither counted)
+    std::string gl;                   // the OpenGL context its GPU stages ran on, "" if none ran
 };
 
 // A setting of the ladder: a name and a function that bakes the space with it.

@@ -180,7 +180,11 @@ std::string versionText() {
     s += "tinyxml2 " + std::to_string(TIXML2_MAJOR_VERSION) + "." + std::to_string(TIXML2_MINOR_VERSION) + "." +
          std::to_string(TIXML2_PATCH_VERSION) + "\n";
     Expected<std::unique_ptr<gpu::GlContext>> gl = gpu::createOffscreenContext(16, 16);
-    s += "OpenGL: " + (gl ? (*gl)->description() : "none (" + gl.error().message + "; the GPU stages are skipped)");
+    s += "OpenGL: " + (gl ? (*gl)->report() : "none (" + gl.error().message + "; the GPU stages are skipped)");
+    // Every backend and EGL device, for --gl / --gl-device (the line above is what the
+    // current choice, auto unless SHADOWCULL_GL says otherwise, gives).
+    s += "\nOpenGL backends:";
+    for (const std::string& line : gpu::listGlBackends()) s += "\n  " + line;
     return s;
 }
 

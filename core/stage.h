@@ -19,6 +19,8 @@ struct StageStats {
     uint64_t raysCast = 0;
     uint64_t exactTests = 0;  // exact (CGAL) receiver tests
     uint64_t gpuPasses = 0;   // render passes over a light view's targets (GPU stages)
+    double gpuSeconds = 0.0;  // GL_TIME_ELAPSED of the GPU stages' passes, where gpuTimed
+    bool gpuTimed = false;    // the driver has timer queries (not every stage uses the GPU)
     uint64_t provedKept = 0;
     uint64_t provedCulled = 0;
     void add(const StageStats& o) {
@@ -27,6 +29,8 @@ struct StageStats {
         raysCast += o.raysCast;
         exactTests += o.exactTests;
         gpuPasses += o.gpuPasses;
+        gpuSeconds += o.gpuSeconds;
+        gpuTimed |= o.gpuTimed;
         provedKept += o.provedKept;
         provedCulled += o.provedCulled;
     }

@@ -74,6 +74,8 @@ struct GpuBaselineMethod::Gl {
 GpuBaselineMethod::GpuBaselineMethod(GpuBaselineOptions options) : options_(options) {}
 GpuBaselineMethod::~GpuBaselineMethod() = default;  // destroying the context frees its objects
 
+std::string GpuBaselineMethod::glDescription() const { return gl_ ? gl_->session->context->report() : std::string(); }
+
 Status GpuBaselineMethod::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();
     counts_.clear();
@@ -100,6 +102,7 @@ Status GpuBaselineMethod::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats
     }
     if (Status s = gl_->session->makeCurrent(); !s) return s;
     const GlApi& gl = gl_->session->gl;
+    GpuTimer gpuTime(gl);
 
     // Which centre group ranges need queries: verdict object of each window object.
     std::vector<int> verdictObject(w.objects.size(), -1);
@@ -241,6 +244,7 @@ Status GpuBaselineMethod::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats
     gl.BindFramebuffer(GL_FRAMEBUFFER, 0);
     if (heights.texture) gl.DeleteTextures(1, &heights.texture);
     buffers.destroy(gl);
+    gpuTime.addTo(stats);
     if (Status s = gl.check("the baseline passes"); !s) return s;
 
     // A bake keeps every decision to its end, so the reasons are shared: one per sample

@@ -29,6 +29,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "core/stage.h"
@@ -57,6 +58,9 @@ public:
     GpuBaselineMethod& operator=(const GpuBaselineMethod&) = delete;
 
     const char* name() const override { return kStageName; }
+    // GlContext::report() of the context the passes ran on ("" before the
+    // first run that needed them).
+    std::string glDescription() const;
     // Decides every undecided bit of the centre chunk (see above). The OpenGL context is
     // made on the first call; no context is an ErrorKind::Internal error.
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;

@@ -482,6 +482,8 @@ struct GpuConfirmStage::LightWork {
 GpuConfirmStage::GpuConfirmStage(GpuConfirmOptions options) : options_(options) {}
 GpuConfirmStage::~GpuConfirmStage() = default;  // destroying the context frees its objects
 
+std::string GpuConfirmStage::glDescription() const { return gl_ ? gl_->session->context->report() : std::string(); }
+
 Status GpuConfirmStage::ensureGl() {
     if (gl_) return gl_->session->makeCurrent();
     const int res = options_.resolution;
@@ -561,6 +563,7 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     // input does not depend on which thread made which piece (nor on the thread count).
     const FloatModeScope ieee(FloatModeScope::Underflow::Gradual);
     if (Status s = ensureGl(); !s) return s;
+    GpuTimer gpuTime(gl_->session->gl);
     WindowTriangles tris(w);
     // The window slid: keep the edges of the meshes still loaded, drop the others (the
     // terrains of the chunks left behind), so that memory follows the window, not the world.
@@ -576,6 +579,7 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
             if (cv.at(groups_[k].object, groups_[k].group, l).stage == name()) ++stats.provedCulled;
         }
     }
+    gpuTime.addTo(stats);
     stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return Status::ok();
 }

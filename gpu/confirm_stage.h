@@ -41,6 +41,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
@@ -99,6 +100,9 @@ public:
     GpuConfirmStage& operator=(const GpuConfirmStage&) = delete;
 
     const char* name() const override { return "gpu"; }
+    // GlContext::report() of the context the passes ran on ("" before the
+    // first run that needed them).
+    std::string glDescription() const;
     // Looks only at undecided bits; culls those it proves 0 (stage "gpu"), leaves the rest
     // undecided. The OpenGL context is made on the first call that has work; no context
     // is an ErrorKind::Internal error.

@@ -81,7 +81,7 @@ Status GlApi::load(const GlContext& context) {
     SHADOWCULL_GL_FUNCTIONS(SHADOWCULL_GL_LOAD)
 #undef SHADOWCULL_GL_LOAD
     // Count the objects made and deleted (see liveGlObjects), when this context's entry
-    // points are the library's first ones (always, with one OSMesa).
+    // points are the library's first ones (always, with one backend per process).
     std::call_once(libraryLoaded, [&] {
 #define SHADOWCULL_GL_KEEP(name) library.name = name;
         SHADOWCULL_GL_COUNTED(SHADOWCULL_GL_KEEP)
@@ -251,6 +251,31 @@ Expected<std::unique_ptr<GlSession>> openGlSession() {
     if (Status s = session->makeCurrent(); !s) return s.error();
     if (Status s = session->gl.load(*session->context); !s) return s.error();
     return session;
+}
+
+GpuTimer::GpuTimer(const GlApi& gl) : gl_(gl), wallStart_(std::chrono::steady_clock::now()) {
+    GLint bits = 0;
+    gl_.GetQueryiv(GL_TIMESTAMP, GL_QUERY_COUNTER_BITS, &bits);
+    if (bits <= 0) return;
+    gl_.GenQueries(2, queries_);
+    gl_.QueryCounter(queries_[0], GL_TIMESTAMP);
+}
+
+GpuTimer::~GpuTimer() {
+    if (queries_[0]) gl_.DeleteQueries(2, queries_);
+}
+
+void GpuTimer::addTo(StageStats& stats) {
+    if (!queries_[0]) return;
+    gl_.QueryCounter(queries_[1], GL_TIMESTAMP);
+    GLuint64 t0 = 0, t1 = 0;
+    gl_.GetQueryObjectui64v(queries_[0], GL_QUERY_RESULT, &t0);
+    gl_.GetQueryObjectui64v(queries_[1], GL_QUERY_RESULT, &t1);
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart_).count();
+    const double gpu = t1 >= t0 ? double(t1 - t0) * 1e-9 : -1.0;
+    if (gpu < 0.0 || gpu > wall) return;
+    stats.gpuSeconds += gpu;
+    stats.gpuTimed = true;
 }
 
 }  // namespace shadowcull::gpu

@@ -3,12 +3,14 @@
 // framebuffers and buffers. Errors come back as ErrorKind::Internal.
 #pragma once
 
+#include <chrono>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include <GL/glcorearb.h>
 
+#include "core/stage.h"
 #include "core/status.h"
 #include "gpu/gl_context.h"
 
@@ -99,7 +101,9 @@ namespace shadowcull::gpu {
     X(PFNGLDELETEQUERIESPROC, DeleteQueries)                                         \
     X(PFNGLBEGINQUERYPROC, BeginQuery)                                               \
     X(PFNGLENDQUERYPROC, EndQuery)                                                   \
-    X(PFNGLGETQUERYOBJECTUI64VPROC, GetQueryObjectui64v)
+    X(PFNGLGETQUERYOBJECTUI64VPROC, GetQueryObjectui64v)                             \
+    X(PFNGLGETQUERYIVPROC, GetQueryiv)                                               \
+    X(PFNGLQUERYCOUNTERPROC, QueryCounter)
 
 // The loaded entry points, named without the "gl" prefix: gl.DrawArrays(...).
 struct GlApi {
@@ -161,5 +165,28 @@ struct GlSession {
 
 // createOffscreenContext (a small default framebuffer: the passes use FBOs) + GlApi::load.
 Expected<std::unique_ptr<GlSession>> openGlSession();
+
+// The GPU's own time for the GL work between construction and addTo(), where the driver
+// has timer queries (GL_QUERY_COUNTER_BITS of GL_TIMESTAMP > 0): two GL_TIMESTAMP
+// queries (glQueryCounter), the difference of when the GPU reached each. Not one
+// GL_TIME_ELAPSED query: llvmpipe (Mesa 22.3) sums per-thread intervals of which some never
+// started, and returned ~3000 s for a 2 s stage. A result longer than the wall time
+// between the two calls is impossible (the work ends in a read-back before addTo returns)
+// and is dropped (stats.gpuTimed stays false). addTo waits for the result.
+class GpuTimer {
+public:
+    explicit GpuTimer(const GlApi& gl);
+    ~GpuTimer();
+    GpuTimer(const GpuTimer&) = delete;
+    GpuTimer& operator=(const GpuTimer&) = delete;
+    // Adds the GPU seconds to stats.gpuSeconds and sets stats.gpuTimed (nothing without a
+    // timer, or with an impossible result). Call once.
+    void addTo(StageStats& stats);
+
+private:
+    const GlApi& gl_;
+    GLuint queries_[2] = {0, 0};
+    std::chrono::steady_clock::time_point wallStart_;
+};
 
 }  // namespace shadowcull::gpu

@@ -171,6 +171,7 @@ Expected<RenderReport> renderLightView(const BakeWindow& w, const ChunkVerdicts&
     if (Status s = buffers.upload(gl, w, tris); !s) return s.error();
 
     RenderReport report;
+    report.gl = (*session)->context->report();
     // Colour of each (window object, group), and the legend's counts.
     std::vector<int> verdictObject(w.objects.size(), -1);
     for (size_t oi = 0; oi < cv.objects.size(); ++oi)

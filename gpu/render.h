@@ -43,6 +43,7 @@ struct RenderReport {
     uint64_t outlined = 0;                // outlined groups seen in the view
     std::vector<std::string> title, legend;  // the text lines drawn
     int viewX = 0, viewY = 0, tile = 0, cols = 1, rows = 1;  // view tiles: top-left, side
+    std::string gl;  // the backend, GL_VENDOR, GL_RENDERER, GL_VERSION it was drawn with
 };
 
 // Writes an 8-bit RGB PNG. Errors: BadInput for a light or resolution out of range,

@@ -6,6 +6,7 @@ packages=(
   build-essential cmake ninja-build pkg-config
   libglm-dev libtinyxml2-dev libpng-dev libtbb-dev libembree-dev libcgal-dev
   libosmesa6-dev mesa-common-dev
+  libegl-dev libegl-mesa0 libgl1-mesa-dri
   nlohmann-json3-dev libcli11-dev
   libmeshoptimizer-dev gltfpack libdraco-dev
   googletest libgtest-dev libbenchmark-dev

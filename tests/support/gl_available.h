@@ -1,5 +1,6 @@
-// Whether this machine can make an offscreen OpenGL context (OSMesa), for tests that need
-// one: REQUIRE_GL() skips the test, saying why, where none can be made.
+// Whether this machine can make an offscreen OpenGL context on the chosen backend
+// (SHADOWCULL_GL, default auto: EGL, then OSMesa), for tests that need one: REQUIRE_GL()
+// skips the test, saying why, where none can be made.
 #pragma once
 
 #include <memory>
@@ -27,5 +28,5 @@ inline const std::string& glUnavailableReason() {
         if (!::shadowcull::testing::glUnavailableReason().empty())                                              \
             GTEST_SKIP() << "no offscreen OpenGL context can be made here ("                                   \
                          << ::shadowcull::testing::glUnavailableReason()                                        \
-                         << "); install libosmesa6 (Mesa llvmpipe) to run the GPU tests";                       \
+                         << "); install libegl-mesa0 (Mesa llvmpipe) to run the GPU tests";                       \
     } while (0)
