@@ -20,6 +20,7 @@
 #include "cli/gltf_commands.h"
 #include "cli/render_command.h"
 #include "cli/report.h"
+#include "cli/savings_report.h"
 #include "cli/sweep.h"
 #include "cli/usage.h"
 #include "core/limits.h"
@@ -225,6 +226,14 @@ int main(int argc, char** argv) {
     exportCmd->add_option("--gltf", exportOpt.scenePath, "The scene the space was imported from")->required()->check(existingFile());
     exportCmd->add_option("--out", exportOpt.outPath, "The copy to write (.glb for a .glb scene, .gltf for a .gltf scene)")->required();
 
+    ReportOptions reportOpt;
+    CLI::App* report = app.add_subcommand("report", "What a bake's masks remove from each light's shadow pass (casters, triangles)");
+    report->add_option("space", reportOpt.spaceDir, "The space that was baked")->required()->check(existingDirectory());
+    report->footer(kSavingsExitCodes);
+    report->add_option("results", reportOpt.resultsPath, "Results JSON of the bake (bake --results)")->required()->check(existingFile());
+    report->add_option("--html", reportOpt.htmlPath, "Write a self-contained HTML page (maps, tables, biggest savings)");
+    report->add_option("--res", reportOpt.resourceRoot, "Resource root");
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::Success& e) {  // --help, --version
@@ -250,6 +259,7 @@ int main(int argc, char** argv) {
     if (*explain) return runExplain(explainOpt, std::cout, std::cerr);
     if (*import) return runImport(importOpt, importSun, std::cout, std::cerr);
     if (*exportCmd) return runExport(exportOpt, std::cout, std::cerr);
+    if (*report) return runReport(reportOpt, std::cout, std::cerr);
     if (*sweep) {
         std::vector<SweepSetting> ladder = analyticLadder(sweepOpt.quick);
         if (noGpu) ladder.erase(std::remove_if(ladder.begin(), ladder.end(), [](const SweepSetting& s) { return s.name.find("gpu") != std::string::npos || s.name.find("GPU") != std::string::npos; }), ladder.end());
