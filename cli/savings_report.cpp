@@ -50,8 +50,25 @@ namespace {
 
 std::string pair(const WorkRecord& w) { return grouped(w.casters) + " | " + grouped(w.triangles); }
 
-// Rows of cells, each column padded to its widest cell; the first column left-aligned.
-std::string textTable(const std::vector<std::vector<std::string>>& rows, const std::string& indent) {
+// Rows of cells, each column padded to its widest cell; the first column left-aligned, the
+// others right-aligned, and "casters | triangles" pairs aligned on their bar.
+std::string textTable(std::vector<std::vector<std::string>> rows, const std::string& indent) {
+    const std::string bar = " | ";
+    std::vector<size_t> left, right;  // per column: widest part before and after the bar
+    for (const auto& r : rows)
+        for (size_t c = 0; c < r.size(); ++c) {
+            if (left.size() <= c) left.push_back(0), right.push_back(0);
+            if (size_t k = r[c].find(bar); k != std::string::npos) {
+                left[c] = std::max(left[c], k);
+                right[c] = std::max(right[c], r[c].size() - k - bar.size());
+            }
+        }
+    for (auto& r : rows)
+        for (size_t c = 0; c < r.size(); ++c)
+            if (size_t k = r[c].find(bar); k != std::string::npos) {
+                const std::string a = r[c].substr(0, k), b = r[c].substr(k + bar.size());
+                r[c] = std::string(left[c] - a.size(), ' ') + a + bar + std::string(right[c] - b.size(), ' ') + b;
+            }
     std::vector<size_t> width;
     for (const auto& r : rows)
         for (size_t c = 0; c < r.size(); ++c) {
