@@ -4,25 +4,13 @@
 #include <sstream>
 
 #include "cli/diff_model.h"
+#include "cli/html_text.h"
 
 namespace shadowcull::cli::diff_detail {
 
 namespace {
 
-std::string esc(const std::string& s) {
-    std::string o;
-    for (char ch : s) {
-        switch (ch) {
-            case '&': o += "&amp;"; break;
-            case '<': o += "&lt;"; break;
-            case '>': o += "&gt;"; break;
-            case '"': o += "&quot;"; break;
-            case '\'': o += "&#39;"; break;
-            default: o += ch;
-        }
-    }
-    return o;
-}
+std::string esc(const std::string& s) { return htmlEscape(s); }
 
 // What happened to a chunk, in a word or two (the counts say how much).
 std::string chunkStatus(const ChunkRow& r) {

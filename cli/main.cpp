@@ -20,6 +20,7 @@
 #include "cli/gltf_commands.h"
 #include "cli/render_command.h"
 #include "cli/report.h"
+#include "cli/savings_report.h"
 #include "cli/sweep.h"
 #include "cli/usage.h"
 #include "core/limits.h"
@@ -244,6 +245,13 @@ int main(int argc, char** argv) {
 
     GlFlags glFlags;
     for (CLI::App* command : {bake, sweep, check, render}) addGlOptions(command, glFlags);
+    ReportOptions reportOpt;
+    CLI::App* report = app.add_subcommand("report", "What a bake's masks remove from each light's shadow pass (casters, triangles)");
+    report->add_option("space", reportOpt.spaceDir, "The space that was baked")->required()->check(existingDirectory());
+    report->footer(kSavingsExitCodes);
+    report->add_option("results", reportOpt.resultsPath, "Results JSON of the bake (bake --results)")->required()->check(existingFile());
+    report->add_option("--html", reportOpt.htmlPath, "Write a self-contained HTML page (maps, tables, biggest savings)");
+    report->add_option("--res", reportOpt.resourceRoot, "Resource root");
 
     try {
         app.parse(argc, argv);
@@ -275,6 +283,7 @@ int main(int argc, char** argv) {
     if (*explain) return runExplain(explainOpt, std::cout, std::cerr);
     if (*import) return runImport(importOpt, importSun, std::cout, std::cerr);
     if (*exportCmd) return runExport(exportOpt, std::cout, std::cerr);
+    if (*report) return runReport(reportOpt, std::cout, std::cerr);
     if (*sweep) {
         std::vector<SweepSetting> ladder = analyticLadder(sweepOpt.quick);
         if (noGpu) ladder.erase(std::remove_if(ladder.begin(), ladder.end(), [](const SweepSetting& s) { return s.name.find("gpu") != std::string::npos || s.name.find("GPU") != std::string::npos; }), ladder.end());

@@ -1,5 +1,7 @@
 #include "cli/report.h"
 
+#include "cli/savings_report.h"
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -21,6 +23,24 @@ BitCounts countBits(const BakeResult& r) {
             }
         }
     return c;
+}
+
+savings::Tally tallyBake(const BakeResult& r) {
+    savings::Tally t(r.settings.lights.size());
+    for (const ChunkVerdicts& cv : r.chunks) {
+        t.beginChunk();
+        for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+            const ObjectVerdicts& ov = cv.objects[oi];
+            for (int g = 0; g < ov.groupCount; ++g) {
+                const uint64_t tris = size_t(g) < ov.groupTriangles.size() ? ov.groupTriangles[size_t(g)] : 0;
+                for (int l = 0; l < cv.lightCount; ++l) {
+                    const Decision& d = cv.at(oi, g, l);
+                    t.add(size_t(l), savings::classify(verdictName(d.verdict), d.stage, d.reason()), d.stage, tris);
+                }
+            }
+        }
+    }
+    return t;
 }
 
 namespace {
@@ -75,6 +95,9 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
     s += std::string(baselineOnly ? "  culled, 0 samples passed  " : "  proved 0                  ") + std::to_string(c.culled) +
          byStage(c.culledBy);
     s += "\n  undecided, kept as 1      " + std::to_string(c.undecided) + "\n";
+    std::vector<std::string> lightNames;
+    for (const Light& L : r.settings.lights) lightNames.push_back(L.name);
+    s += formatSavingsTable(tallyBake(r).world(), lightNames);
     s += formatSimulated(r.chunks);
     s += "time: load " + fmt("%.2f s", r.loadSeconds);
     for (const StageTiming& st : r.stages) {
@@ -117,6 +140,7 @@ results::ResultsFile resultsFile(const BakeResult& r) {
                 results::GroupRecord& gr = o.groups.emplace_back();
                 gr.group = g;
                 gr.mask = cv.groupMask(oi, g);
+                if (size_t(g) < ov.groupTriangles.size()) gr.triangles = ov.groupTriangles[size_t(g)];
                 if (size_t(g) < ov.wsGroupBounds.size() && ov.wsGroupBounds[size_t(g)][0].x <= ov.wsGroupBounds[size_t(g)][1].x)
                     gr.bounds = ov.wsGroupBounds[size_t(g)];
                 o.mask |= gr.mask;
@@ -149,6 +173,9 @@ results::ResultsFile resultsFile(const BakeResult& r) {
     f.summary.provedKept = n.provedKept;
     f.summary.undecided = n.undecided;
     f.summary.culledBy = n.culledBy;
+    const savings::Tally t = tallyBake(r);
+    f.summary.savings = t.world();
+    for (size_t k = 0; k < f.chunks.size() && k < t.chunks().size(); ++k) f.chunks[k].savings = t.chunks()[k];
     for (const Diagnostic& d : r.diagnostics) f.warnings.push_back(d.what());
     return f;
 }

@@ -6,6 +6,7 @@
 
 #include "cli/pipeline.h"
 #include "core/results_file.h"
+#include "core/savings.h"
 
 namespace shadowcull::cli {
 
@@ -19,6 +20,10 @@ struct BitCounts {
 };
 
 BitCounts countBits(const BakeResult& r);
+
+// The shadow-pass savings of a bake (core/savings.h), per light, for the world and per
+// chunk (in r.chunks order), from the groups' placed triangles.
+savings::Tally tallyBake(const BakeResult& r);
 
 // The effects the bake simulated (semantics.md: "the bake says which it simulated"): each
 // effect of the chunks' `simulated` lists once, with how many chunks it applied to when not

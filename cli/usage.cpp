@@ -145,6 +145,9 @@ const char* const kImportExitCodes =
 const char* const kExportExitCodes =
     "Exit codes: 0 written; 1 written, but some mesh nodes are in chunks the results do not hold; 2 usage error;\n"
     "3 the scene, space or results do not belong together or are malformed; 4 could not write.\n";
+const char* const kSavingsExitCodes =
+    "Exit codes: 0 reported; 2 usage error (SPACE or RESULTS does not exist); 3 bad input (not a results file, results\n"
+    "of another space or of the space before it changed, --html naming an input); 4 the page cannot be written.\n";
 const char* const kReportExitCodes =
     "Exit codes: 0 done; 2 usage error; 3 bad input; 4 a file cannot be written; 5 internal error (Embree,\n"
     "CGAL, OpenGL).\n";
@@ -162,7 +165,7 @@ std::string formatParseFailure(const CLI::App* app, const CLI::Error& e) {
     // CLI11's own wording where no validator of ours speaks first.
     std::string what = e.what();
     if (what == "A subcommand is required")
-        what = "no command given (bake, sweep, diff, explain, check, render, import or export)";
+        what = "no command given (bake, sweep, diff, explain, check, render, import, export or report)";
     const std::string convert = "Could not convert: ";
     if (what.rfind(convert, 0) == 0)
         if (const size_t eq = what.find(" = ", convert.size()); eq != std::string::npos)

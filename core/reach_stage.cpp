@@ -9,6 +9,7 @@
 
 #include "core/format.h"
 #include "core/light_reach.h"
+#include "core/savings.h"
 #include "core/stage.h"
 
 namespace shadowcull {
@@ -35,9 +36,11 @@ ChunkVerdicts makeChunkVerdicts(const Space& space, const BakeWindow& window) {
             ov.decisions.resize(size_t(ov.groupCount) * size_t(cv.lightCount));
             const WindowObject& wo = window.objects[size_t(ov.windowObject)];
             ov.wsGroupBounds.assign(size_t(ov.groupCount), {glm::dvec3(1e300), glm::dvec3(-1e300)});
+            ov.groupTriangles.assign(size_t(ov.groupCount), 0);
             for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
                 const size_t g = wo.mesh->triangleGroup[t];
                 if (g >= ov.wsGroupBounds.size()) continue;
+                ++ov.groupTriangles[g];
                 for (uint32_t v : wo.mesh->triangles[t]) {
                     const glm::dvec3 p = wo.lsTransform.apply(wo.mesh->positions[v]) + window.wsOrigin;
                     ov.wsGroupBounds[g][0] = glm::min(ov.wsGroupBounds[g][0], p);
@@ -90,7 +93,7 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
                 const Light& L = window.lsLights[size_t(l)];
                 const Aabb& gb = groupBounds[size_t(g)];
                 if (!castsShadow) {
-                    decide(d, Verdict::Culled, "input", "castsShadow is false");
+                    decide(d, Verdict::Culled, "input", savings::kCastsShadowFalse);
                 } else if (gb.empty()) {
                     decide(d, Verdict::Culled, "input", "the group has no triangle with three distinct vertices");
                 } else if (!lightsReach_) {

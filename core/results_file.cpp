@@ -54,6 +54,23 @@ json bitJson(const BitRecord& b) {
     return j;
 }
 
+json workJson(const WorkRecord& w) { return {{"casters", w.casters}, {"triangles", w.triangles}}; }
+
+json savingsJson(const std::vector<LightSavingsRecord>& savings) {
+    json a = json::array();
+    for (const LightSavingsRecord& r : savings) {
+        json by = json::object();
+        for (const auto& [stage, w] : r.bakeCullsBy) by[stage] = workJson(w);
+        a.push_back({{"light", r.light},
+                     {"all", workJson(r.all)},
+                     {"engineCulls", workJson(r.engineCulls)},
+                     {"bakeCulls", workJson(r.bakeCulls)},
+                     {"bakeCullsBy", std::move(by)},
+                     {"undecided", workJson(r.undecided)}});
+    }
+    return a;
+}
+
 json objectJson(const ObjectRecord& o) {
     json j;
     j["element"] = o.element;
@@ -70,6 +87,7 @@ json objectJson(const ObjectRecord& o) {
         for (const BitRecord& b : g.lights) bits.push_back(bitJson(b));
         json jg = {{"group", g.group}, {"mask", g.mask}, {"lights", std::move(bits)}};
         if (g.bounds) jg["bounds"] = boxJson(*g.bounds);
+        if (g.triangles) jg["triangles"] = *g.triangles;
         groups.push_back(std::move(jg));
     }
     j["mask"] = o.mask;
@@ -174,6 +192,7 @@ ObjectRecord readObject(const json& jo, const std::string& at, std::string& wher
         g.group = int(o.groups.size());
         g.mask = integer<uint32_t>(jg, "mask");
         if (jg.contains("bounds")) g.bounds = readBox(jg["bounds"]);
+        if (jg.contains("triangles")) g.triangles = integer<uint64_t>(jg, "triangles");
         for (const json& jl : jg.at("lights")) {
             where = ga + ".lights[" + std::to_string(g.lights.size()) + "]";
             if (integer<size_t>(jl, "light") != g.lights.size() + 1) throw BadContent{"lights out of order"};
@@ -182,6 +201,25 @@ ObjectRecord readObject(const json& jo, const std::string& at, std::string& wher
         o.groups.push_back(std::move(g));
     }
     return o;
+}
+
+WorkRecord readWork(const json& j) { return {integer<uint64_t>(j, "casters"), integer<uint64_t>(j, "triangles")}; }
+
+std::vector<LightSavingsRecord> readSavings(const json& a) {
+    if (!a.is_array()) throw BadContent{"'savings' must be an array, not " + a.dump()};
+    std::vector<LightSavingsRecord> v;
+    for (const json& j : a) {
+        LightSavingsRecord r;
+        r.light = integer<int>(j, "light");
+        r.all = readWork(j.at("all"));
+        r.engineCulls = readWork(j.at("engineCulls"));
+        r.bakeCulls = readWork(j.at("bakeCulls"));
+        r.undecided = readWork(j.at("undecided"));
+        if (j.contains("bakeCullsBy"))
+            for (auto it = j["bakeCullsBy"].begin(); it != j["bakeCullsBy"].end(); ++it) r.bakeCullsBy[it.key()] = readWork(it.value());
+        v.push_back(std::move(r));
+    }
+    return v;
 }
 
 Summary readSummary(const json& js) {
@@ -196,6 +234,7 @@ Summary readSummary(const json& js) {
     const json& by = js.at("culledBy");
     if (!by.is_object()) throw BadContent{"'culledBy' must be an object, not " + by.dump()};
     for (auto it = by.begin(); it != by.end(); ++it) s.culledBy[it.key()] = integer<uint64_t>(by, it.key().c_str());
+    if (js.contains("savings")) s.savings = readSavings(js["savings"]);
     return s;
 }
 
@@ -217,6 +256,7 @@ std::string chunkJson(const ChunkRecord& chunk) {
     json j;
     j["chunk"] = chunk.chunk;
     j["simulated"] = chunk.simulated;
+    if (!chunk.savings.empty()) j["savings"] = savingsJson(chunk.savings);
     json objects = json::array();
     for (const ObjectRecord& o : chunk.objects) objects.push_back(objectJson(o));
     j["objects"] = std::move(objects);
@@ -241,6 +281,7 @@ std::string resultsTail(const ResultsFile& file, bool anyChunk) {
     j["summary"] = {{"chunks", s.chunks},      {"groups", s.groups},         {"bits", s.bits},
                     {"kept", s.kept},          {"culled", s.culled},         {"provedKept", s.provedKept},
                     {"undecided", s.undecided}, {"culledBy", std::move(culledBy)}};
+    if (!s.savings.empty()) j["summary"]["savings"] = savingsJson(s.savings);
     j["warnings"] = file.warnings;
     // Every other key sorts after "chunks" (nlohmann's json keeps keys sorted), so the rest
     // of the file is this object's dump without its opening brace.
@@ -341,6 +382,8 @@ Expected<ResultsFile> parseResults(const std::string& path, const std::string& t
             if (jc.contains("simulated")) c.simulated = jc["simulated"].get<std::vector<std::string>>();
             for (const json& jo : jc.at("objects"))
                 c.objects.push_back(readObject(jo, ca + ".objects[" + std::to_string(c.objects.size()) + "]", where));
+            where = ca;
+            if (jc.contains("savings")) c.savings = readSavings(jc["savings"]);
             f.chunks.push_back(std::move(c));
         }
         // What follows was never needed by diff: read after the chunks, so that a fault in

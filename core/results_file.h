@@ -47,6 +47,9 @@ struct GroupRecord {
     int group = 0;                 // from 0, in order
     uint32_t mask = 0;             // the group's <shadow> bits
     std::optional<BoxRecord> bounds;  // the group's triangles (left out: none, or unknown)
+    // The group's placed triangles as the engine draws them in a shadow pass (degenerate
+    // ones too); left out by files older than this field.
+    std::optional<uint64_t> triangles;
     std::vector<BitRecord> lights;  // [light - 1]
 };
 
@@ -61,10 +64,27 @@ struct ObjectRecord {
     std::vector<GroupRecord> groups;
 };
 
+// Shadow-pass work: casters (groups, one draw each) and their placed triangles.
+struct WorkRecord {
+    uint64_t casters = 0, triangles = 0;
+};
+
+// What the masks remove from one light's shadow pass (core/savings.h computes it; "savings"
+// in the file): every caster group of the baked chunks (`all`), those the engine's own
+// run-time culling already skips (`engineCulls`: castsShadow false, beyond the range,
+// outside the cone), those only this bake removes (`bakeCulls`, by deciding stage in
+// `bakeCullsBy`) and those kept without a proof (`undecided`: savings still possible).
+struct LightSavingsRecord {
+    int light = 0;  // from 1
+    WorkRecord all, engineCulls, bakeCulls, undecided;
+    std::map<std::string, WorkRecord> bakeCullsBy;
+};
+
 struct ChunkRecord {
     std::string chunk;                   // file name, e.g. "0000ffffo.chunk"
     std::vector<std::string> simulated;  // effects the bake simulated for this chunk
     std::vector<ObjectRecord> objects;   // document order
+    std::vector<LightSavingsRecord> savings;  // per light; empty: the file has none (older)
 };
 
 struct LightRecord {
@@ -85,6 +105,9 @@ struct Summary {
     uint64_t provedKept = 0;               // 1 with a witness (verdict "kept")
     uint64_t undecided = 0;                // 1 because nobody could decide
     std::map<std::string, uint64_t> culledBy;  // stage -> bits proved 0
+    // Per light, over every chunk (left out by older files, and not derived for a file
+    // without a "summary": core/savings.h computes it from the groups' triangles).
+    std::vector<LightSavingsRecord> savings;
 };
 
 struct ResultsFile {

@@ -83,6 +83,9 @@ struct ObjectVerdicts {
     // World box of each group's triangles ({min, max}; min > max for a group without any),
     // for reports that draw the object.
     std::vector<std::array<glm::dvec3, 2>> wsGroupBounds;
+    // Placed triangles of each group (degenerate ones too: an engine draws them), for the
+    // shadow-pass savings (core/savings.h).
+    std::vector<uint64_t> groupTriangles;
 };
 
 struct ChunkVerdicts {
