@@ -145,6 +145,10 @@ const char* const kImportExitCodes =
 const char* const kExportExitCodes =
     "Exit codes: 0 written; 1 written, but some mesh nodes are in chunks the results do not hold; 2 usage error;\n"
     "3 the scene, space or results do not belong together or are malformed; 4 could not write.\n";
+const char* const kMergeExitCodes =
+    "Exit codes: 0 merged; 2 usage error; 3 a file is unreadable, malformed or not a shard's results; 4 OUT cannot\n"
+    "be written; 7 the shards are of different bakes (inputs, options, space or shard count); 8 a shard or chunk\n"
+    "is missing or given twice. Nothing is written unless the exit code is 0.\n";
 const char* const kReportExitCodes =
     "Exit codes: 0 done; 2 usage error; 3 bad input; 4 a file cannot be written; 5 internal error (Embree,\n"
     "CGAL, OpenGL).\n";
