@@ -17,6 +17,8 @@
 #include "cli/check.h"
 #include "cli/diff.h"
 #include "cli/explain.h"
+#include "cli/merge.h"
+#include "cli/shard.h"
 #include "cli/gltf_commands.h"
 #include "cli/render_command.h"
 #include "cli/report.h"
@@ -151,6 +153,13 @@ int main(int argc, char** argv) {
     bake->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
     bake->add_flag("--resume", opt.resume,
                    "Long bakes: commit each chunk when baked; skip chunks unchanged since the last --resume bake");
+    std::string shardText;
+    bake->add_option("--shard", shardText,
+                     "Bake only part K of N of the space (K from 1; own lock, resume state and results; join the results with "
+                     "'merge')")
+        ->check(CLI::Validator(
+            [](std::string& v) { return parseShard(v) ? std::string() : "expected K/N with 1 <= K <= N <= " + std::to_string(kMaxShards); },
+            "K/N"));
 
     SweepOptions sweepOpt;
     CLI::App* sweep = app.add_subcommand("sweep", "What accuracy costs in time: a ladder of settings against a dense reference");
@@ -252,6 +261,11 @@ int main(int argc, char** argv) {
     report->add_option("results", reportOpt.resultsPath, "Results JSON of the bake (bake --results)")->required()->check(existingFile());
     report->add_option("--html", reportOpt.htmlPath, "Write a self-contained HTML page (maps, tables, biggest savings)");
     report->add_option("--res", reportOpt.resourceRoot, "Resource root");
+    MergeOptions mergeOpt;
+    CLI::App* merge = app.add_subcommand("merge", "Join the results files of the shards of one bake (bake --shard K/N --results)");
+    merge->add_option("out", mergeOpt.outPath, "Merged results JSON to write")->required();
+    merge->footer(kMergeExitCodes);
+    merge->add_option("shards", mergeOpt.shardPaths, "Every shard's results JSON")->required()->check(existingFile());
 
     try {
         app.parse(argc, argv);
@@ -272,7 +286,13 @@ int main(int argc, char** argv) {
     opt.useGpu = std::find(stageNames.begin(), stageNames.end(), "gpu") != stageNames.end();
     opt.gpuBaseline = method == "gpu";
     opt.witnessBaselineCulls = opt.gpuBaseline;  // the note says how many 0s have a witness
+    if (std::optional<ShardSpec> shard = parseShard(shardText)) opt.shardIndex = shard->index, opt.shardCount = shard->count;
+    if (opt.shardCount > 0 && !opt.chunkNames.empty()) {
+        std::fprintf(stderr, "shadowcull bake: --shard bakes a part of the whole space; it cannot be combined with --chunk\n");
+        return kExitUsage;
+    }
     if (*bake) return runBakeCommand(opt, quiet);
+    if (*merge) return runMerge(mergeOpt, std::cout, std::cerr);
     if (*diff) return runDiff(diffOpt, std::cout, std::cerr);
     if (*check) return runCheck(checkOpt, std::cout, std::cerr);
     if (*render) {

@@ -24,6 +24,7 @@
 #include "cli/output_guard.h"
 #include "cli/report.h"
 #include "cli/resume.h"
+#include "cli/shard.h"
 #include "core/chunk_writer.h"
 #include "core/file_read.h"
 #include "core/hash.h"
@@ -250,11 +251,13 @@ public:
     ~OutputLock() {
         if (fd_ >= 0) ::close(fd_);  // releases the lock
     }
-    Status acquire(const std::string& dir) {
-        const std::string path = (fs::path(dir) / ".shadowcull-bake.lock").string();
+    // `shared`: a shard's hold on the directory (bake --shard): shards of one bake hold it
+    // together, each with its own exclusive lock as well, while a whole bake needs it alone.
+    Status acquire(const std::string& dir, const std::string& name = ".shadowcull-bake.lock", bool shared = false) {
+        const std::string path = (fs::path(dir) / name).string();
         fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
         if (fd_ < 0) return makeError(ErrorKind::Io, path, 0, std::string("cannot create the bake lock: ") + std::strerror(errno));
-        if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+        if (::flock(fd_, (shared ? LOCK_SH : LOCK_EX) | LOCK_NB) != 0) {
             char pid[32] = {};
             const ssize_t n = ::pread(fd_, pid, sizeof pid - 1, 0);
             std::string holder = n > 0 ? std::string(pid, size_t(n)) : "";
@@ -263,6 +266,7 @@ public:
                              "another shadowcull bake is writing " + dir +
                                  (holder.empty() ? "" : " (process " + holder + ")") + "; wait for it to finish");
         }
+        if (shared) return Status::ok();  // the pid is the exclusive holder's
         const std::string me = std::to_string(::getpid()) + "\n";
         if (::ftruncate(fd_, 0) == 0 && ::pwrite(fd_, me.data(), me.size(), 0) < 0) {
             // The pid is for messages only.
@@ -355,6 +359,20 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
             if (seen.insert(c).second) targets.push_back(c);
         }
     }
+    std::unordered_map<const void*, uint64_t> meshHashes;
+    const bool sharded = opt.shardCount > 0;
+    if (sharded) {
+        // Every shard loads the same space and computes the same partition.
+        if (!opt.chunkNames.empty()) return makeError(ErrorKind::BadInput, "", 0, "--shard bakes a part of the whole space: not with --chunk");
+        targets = partitionChunks(space, opt.shardCount)[size_t(opt.shardIndex - 1)];
+        results::ShardRecord sh;
+        sh.index = opt.shardIndex, sh.count = opt.shardCount;
+        sh.inputs = hexHash(spaceInputHash(space, opt, meshHashes));
+        sh.spaceChunks = space.chunks.size();
+        for (ChunkCoord c : targets) sh.assigned.push_back(chunkFileName(c));
+        sh.spaceWarnings = space.diagnostics.size();
+        result.shard = std::move(sh);
+    }
     result.loadSeconds = since(t0);
     if (Status i = interrupted(); !i) return i.error();
 
@@ -373,14 +391,20 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         if (!probe) return probe.error();
         fs::remove(*probe);
     }
-    OutputLock lock;
-    if (opt.write) {
+    OutputLock lock, shardLock;
+    if (opt.write && sharded) {
+        // Other shards may be staging files in this directory: only this shard's own
+        // temporaries are cleared (below, per chunk).
+        if (Status s = lock.acquire(outDir, ".shadowcull-bake.lock", true); !s) return s.error();
+        const std::string name = ".shadowcull-bake.shard-" + std::to_string(opt.shardIndex) + "-of-" + std::to_string(opt.shardCount) + ".lock";
+        if (Status s = shardLock.acquire(outDir, name); !s) return s.error();
+    } else if (opt.write) {
         if (Status s = lock.acquire(outDir); !s) return s.error();
         // Temporaries of a bake that was killed are never chunk files; clear them away
         // (only now: the lock guarantees they are no running bake's).
         if (const int n = removeStaleTempFiles(outDir))
             result.notes.push_back("removed " + std::to_string(n) + " temporary file(s) a killed bake left in " + outDir);
-    } else if (!staleTempFiles(outDir).empty()) {
+    } else if (!sharded && !staleTempFiles(outDir).empty()) {
         // A dry run writes nothing, but clears what a killed bake left, under the same lock
         // (taken only when there is something to clear; a running bake's files stay).
         if (Status s = lock.acquire(outDir); !s)
@@ -430,7 +454,8 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     };
     const bool resume = opt.resume && opt.write;
     ResumeState state;
-    const std::string statePath = ResumeState::pathIn(outDir);
+    const std::string statePath = ResumeState::pathIn(outDir, opt.shardIndex, opt.shardCount);
+    const bool wantResults = !opt.resultsPath.empty();
     if (resume) state.load(statePath);
     // Renames one staged chunk unless its source changed since it was read (the check and
     // the rename are microseconds apart; the lock keeps other bakes out of that window).
@@ -450,8 +475,8 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         if (resume) (void)state.save(statePath);  // what was committed stays recorded
         return e;
     };
-    std::unordered_map<const void*, uint64_t> meshHashes;
     auto lastSave = std::chrono::steady_clock::now();
+    std::chrono::steady_clock::duration lastSaveCost{};
     size_t done = 0;
     for (size_t k = 0; k < targets.size(); ++k) {
         if (Status i = interrupted(); !i) return stopWith(i.error());
@@ -462,7 +487,15 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         if (resume) {
             inputHash = windowInputHash(space, targets[k], opt, meshHashes);
             Expected<std::string> current = readRegularFile(target, "chunk file", ErrorKind::Io);
-            if (current && state.upToDate(chunkName, inputHash, *current)) {
+            // With --results, its part of the results as recorded; unreadable (an edited
+            // state): bake it again.
+            bool skip = current && state.upToDate(chunkName, inputHash, *current, wantResults);
+            if (skip && wantResults) {
+                Expected<results::ChunkRecord> record = results::parseChunkJson(statePath, state.results(chunkName));
+                if (record) result.resumedRecords.push_back(std::move(*record));
+                skip = bool(record);
+            }
+            if (skip) {
                 ++result.chunksResumed;
                 if (progress) progress({++done, targets.size(), size_t(result.chunksResumed)});
                 continue;
@@ -495,10 +528,16 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
                     // costs baking this chunk again).
                     const int before = result.chunksWritten;
                     if (Status s = commit(sc); !s) return stopWith(s.error());
-                    if (result.chunksWritten > before) state.record(chunkName, inputHash, *rewritten);
-                    if (std::chrono::steady_clock::now() - lastSave > std::chrono::seconds(2)) {
+                    if (result.chunksWritten > before)
+                        state.record(chunkName, inputHash, *rewritten, wantResults ? results::chunkJson(chunkRecord(cv)) : "");
+                    // Every 2 s, or less often when the state is large (with --results it
+                    // holds every chunk's results: 344 MB for world M), so that rewriting it
+                    // costs at most a tenth of the bake; a kill loses only unsaved records.
+                    if (std::chrono::steady_clock::now() - lastSave > std::max<std::chrono::steady_clock::duration>(std::chrono::seconds(2), 10 * lastSaveCost)) {
+                        const auto ts = std::chrono::steady_clock::now();
                         if (Status s = state.save(statePath); !s) return stopWith(s.error());
                         lastSave = std::chrono::steady_clock::now();
+                        lastSaveCost = lastSave - ts;
                     }
                 } else {
                     staged.push_back(std::move(sc));

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/results_file.h"
 #include "core/scene.h"
 #include "core/stage.h"
 #include "core/verdict.h"
@@ -60,6 +61,9 @@ struct BakeOptions {
     // Long bakes: commit each chunk as soon as it is baked, record what was written, and
     // skip chunks whose inputs and file are unchanged since (cli/resume.h).
     bool resume = false;
+    // bake --shard K/N (cli/shard.h): bake only the K-th of N parts of the space (K from
+    // 1), with its own lock, resume state and results. 0: the whole space.
+    int shardIndex = 0, shardCount = 0;
 };
 
 struct StageTiming {
@@ -77,6 +81,10 @@ struct BakeResult {
     int chunksResumed = 0;  // skipped by --resume: unchanged since the last bake
     std::vector<std::string> notes;  // what the bake did differently from what was asked
     std::string gl;                  // the OpenGL context the GPU stages ran on, "" if none ran
+    // With --resume and --results: the chunks skipped as unchanged, as recorded when they
+    // were baked (their part of the results file).
+    std::vector<results::ChunkRecord> resumedRecords;
+    std::optional<results::ShardRecord> shard;  // bake --shard: this shard's part
 };
 
 // The stages a bake runs, in order, made once per bake from its options (the GPU stages

@@ -112,6 +112,47 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
     return s;
 }
 
+results::ChunkRecord chunkRecord(const ChunkVerdicts& cv) {
+    results::ChunkRecord c;
+    c.chunk = chunkFileName(cv.coord);
+    c.simulated = cv.simulated;
+    for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+        const ObjectVerdicts& ov = cv.objects[oi];
+        results::ObjectRecord& o = c.objects.emplace_back();
+        o.element = ov.elementIndex;
+        o.kind = ov.terrain ? "terrain" : "model";
+        o.uuid = ov.uuid;
+        o.skipped = ov.windowObject < 0;
+        if (o.skipped) continue;
+        for (int g = 0; g < ov.groupCount; ++g) {
+            results::GroupRecord& gr = o.groups.emplace_back();
+            gr.group = g;
+            gr.mask = cv.groupMask(oi, g);
+            if (size_t(g) < ov.groupTriangles.size()) gr.triangles = ov.groupTriangles[size_t(g)];
+            if (size_t(g) < ov.wsGroupBounds.size() && ov.wsGroupBounds[size_t(g)][0].x <= ov.wsGroupBounds[size_t(g)][1].x)
+                gr.bounds = ov.wsGroupBounds[size_t(g)];
+            o.mask |= gr.mask;
+            for (int l = 0; l < cv.lightCount; ++l) {
+                const Decision& d = cv.at(oi, g, l);
+                results::BitRecord& b = gr.lights.emplace_back();
+                b.light = l + 1;
+                b.bit = d.verdict == Verdict::Culled ? 0 : 1;
+                b.verdict = verdictName(d.verdict);
+                b.stage = std::string(d.stage);
+                b.reason = std::string(d.reason());
+                for (const StageNote& n : d.notes()) b.notes.emplace_back(std::string(n.stage), n.text);
+                if (const Witness* w = d.witness())
+                {
+                    b.witness = results::WitnessRecord{w->wsOrigin, w->wsDirection, w->wsP, w->wsQ, w->receiver, std::nullopt};
+                    if (w->wsReceiverMin.x <= w->wsReceiverMax.x)
+                        b.witness->receiverBounds = results::BoxRecord{w->wsReceiverMin, w->wsReceiverMax};
+                }
+            }
+        }
+    }
+    return c;
+}
+
 results::ResultsFile resultsFile(const BakeResult& r) {
     results::ResultsFile f;
     f.space = r.settings.spaceDir;
@@ -124,45 +165,7 @@ results::ResultsFile resultsFile(const BakeResult& r) {
         if (L.type == LightType::Spot) r.coneAngle = L.coneHalfAngleDeg;
         r.bias = L.bias, r.slopeBias = L.slopeBias, r.filterRadius = L.filterRadius;
     }
-    for (const ChunkVerdicts& cv : r.chunks) {
-        results::ChunkRecord& c = f.chunks.emplace_back();
-        c.chunk = chunkFileName(cv.coord);
-        c.simulated = cv.simulated;
-        for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
-            const ObjectVerdicts& ov = cv.objects[oi];
-            results::ObjectRecord& o = c.objects.emplace_back();
-            o.element = ov.elementIndex;
-            o.kind = ov.terrain ? "terrain" : "model";
-            o.uuid = ov.uuid;
-            o.skipped = ov.windowObject < 0;
-            if (o.skipped) continue;
-            for (int g = 0; g < ov.groupCount; ++g) {
-                results::GroupRecord& gr = o.groups.emplace_back();
-                gr.group = g;
-                gr.mask = cv.groupMask(oi, g);
-                if (size_t(g) < ov.groupTriangles.size()) gr.triangles = ov.groupTriangles[size_t(g)];
-                if (size_t(g) < ov.wsGroupBounds.size() && ov.wsGroupBounds[size_t(g)][0].x <= ov.wsGroupBounds[size_t(g)][1].x)
-                    gr.bounds = ov.wsGroupBounds[size_t(g)];
-                o.mask |= gr.mask;
-                for (int l = 0; l < cv.lightCount; ++l) {
-                    const Decision& d = cv.at(oi, g, l);
-                    results::BitRecord& b = gr.lights.emplace_back();
-                    b.light = l + 1;
-                    b.bit = d.verdict == Verdict::Culled ? 0 : 1;
-                    b.verdict = verdictName(d.verdict);
-                    b.stage = std::string(d.stage);
-                    b.reason = std::string(d.reason());
-                    for (const StageNote& n : d.notes()) b.notes.emplace_back(std::string(n.stage), n.text);
-                    if (const Witness* w = d.witness())
-                    {
-                        b.witness = results::WitnessRecord{w->wsOrigin, w->wsDirection, w->wsP, w->wsQ, w->receiver, std::nullopt};
-                        if (w->wsReceiverMin.x <= w->wsReceiverMax.x)
-                            b.witness->receiverBounds = results::BoxRecord{w->wsReceiverMin, w->wsReceiverMax};
-                    }
-                }
-            }
-        }
-    }
+    for (const ChunkVerdicts& cv : r.chunks) f.chunks.push_back(chunkRecord(cv));
     // The counts the summary line prints (countBits), not recounted from the records.
     const BitCounts n = countBits(r);
     f.summary.chunks = r.chunks.size();
@@ -173,10 +176,26 @@ results::ResultsFile resultsFile(const BakeResult& r) {
     f.summary.provedKept = n.provedKept;
     f.summary.undecided = n.undecided;
     f.summary.culledBy = n.culledBy;
-    const savings::Tally t = tallyBake(r);
+    if (!r.resumedRecords.empty()) {
+        // Chunks --resume skipped, as recorded when they were baked: the file lists every
+        // chunk of the bake, in grid order, as a bake of all of them would.
+        const results::Summary more = results::summarize(r.resumedRecords);
+        f.summary.chunks += more.chunks, f.summary.groups += more.groups, f.summary.bits += more.bits;
+        f.summary.kept += more.kept, f.summary.culled += more.culled;
+        f.summary.provedKept += more.provedKept, f.summary.undecided += more.undecided;
+        for (const auto& [stage, k] : more.culledBy) f.summary.culledBy[stage] += k;
+        f.chunks.insert(f.chunks.end(), r.resumedRecords.begin(), r.resumedRecords.end());
+        std::stable_sort(f.chunks.begin(), f.chunks.end(), [](const results::ChunkRecord& a, const results::ChunkRecord& b) {
+            return parseChunkName(a.chunk).value_or(ChunkCoord{}) < parseChunkName(b.chunk).value_or(ChunkCoord{});
+        });
+    }
+    // What the masks remove, per chunk and for the world: tallied from the records (the
+    // resumed chunks' too), as `merge` and `report` tally a file.
+    const savings::Tally t = savings::tallyResults(f);
     f.summary.savings = t.world();
     for (size_t k = 0; k < f.chunks.size() && k < t.chunks().size(); ++k) f.chunks[k].savings = t.chunks()[k];
     for (const Diagnostic& d : r.diagnostics) f.warnings.push_back(d.what());
+    f.shard = r.shard;
     return f;
 }
 

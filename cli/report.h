@@ -39,5 +39,8 @@ std::string formatSummary(const BakeResult& r, bool wrote);
 // shortest round-trip form).
 results::ResultsFile resultsFile(const BakeResult& r);
 
+// One baked chunk as the results file lists it (what --resume keeps for a later bake).
+results::ChunkRecord chunkRecord(const ChunkVerdicts& cv);
+
 
 }  // namespace shadowcull::cli

@@ -23,19 +23,34 @@ struct BakeOptions;
 uint64_t windowInputHash(const Space& space, ChunkCoord centre, const BakeOptions& options,
                          std::unordered_map<const void*, uint64_t>& meshHashes);
 
+// Hash of everything a bake of the whole space reads (the settings and lights, the options
+// that change verdicts, the space directory as given, every chunk's objects, mesh content
+// and file bytes): the shards of one bake must agree on it (bake --shard, merge).
+uint64_t spaceInputHash(const Space& space, const BakeOptions& options,
+                        std::unordered_map<const void*, uint64_t>& meshHashes);
+
 class ResumeState {
 public:
-    static std::string pathIn(const std::string& dir);
+    // The state's file in `dir`; a shard (bake --shard K/N) has its own, named after K and N.
+    static std::string nameFor(int shardIndex = 0, int shardCount = 0);
+    static std::string pathIn(const std::string& dir, int shardIndex = 0, int shardCount = 0);
     // A missing or unreadable state means "nothing is up to date" (never an error: the
     // worst case is baking again).
     void load(const std::string& path);
-    bool upToDate(const std::string& chunk, uint64_t inputHash, const std::string& currentBytes) const;
-    void record(const std::string& chunk, uint64_t inputHash, const std::string& writtenBytes);
+    // `needResults`: the bake writes a results file, so the chunk's part of it must have
+    // been recorded too (a chunk baked without --results is baked again).
+    bool upToDate(const std::string& chunk, uint64_t inputHash, const std::string& currentBytes,
+                  bool needResults = false) const;
+    // The chunk's part of the results file as recorded (results::chunkJson), or empty.
+    const std::string& results(const std::string& chunk) const;
+    void record(const std::string& chunk, uint64_t inputHash, const std::string& writtenBytes,
+                std::string resultsJson = {});
     Status save(const std::string& path) const;
 
 private:
     struct Entry {
         uint64_t input = 0, output = 0;
+        std::string results;  // results::chunkJson of the chunk; empty: baked without --results
     };
     std::map<std::string, Entry> entries_;
 };

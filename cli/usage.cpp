@@ -148,6 +148,10 @@ const char* const kExportExitCodes =
 const char* const kSavingsExitCodes =
     "Exit codes: 0 reported; 2 usage error (SPACE or RESULTS does not exist); 3 bad input (not a results file, results\n"
     "of another space or of the space before it changed, --html naming an input); 4 the page cannot be written.\n";
+const char* const kMergeExitCodes =
+    "Exit codes: 0 merged; 2 usage error; 3 a file is unreadable, malformed or not a shard's results; 4 OUT cannot\n"
+    "be written; 7 the shards are of different bakes (inputs, options, space or shard count); 8 a shard or chunk\n"
+    "is missing or given twice. Nothing is written unless the exit code is 0.\n";
 const char* const kReportExitCodes =
     "Exit codes: 0 done; 2 usage error; 3 bad input; 4 a file cannot be written; 5 internal error (Embree,\n"
     "CGAL, OpenGL).\n";

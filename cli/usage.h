@@ -30,6 +30,7 @@ extern const char* const kDiffExitCodes;
 extern const char* const kImportExitCodes;
 extern const char* const kExportExitCodes;
 extern const char* const kSavingsExitCodes;  // report
+extern const char* const kMergeExitCodes;
 extern const char* const kReportExitCodes;  // explain, render, sweep
 extern const char* const kTopFooter;
 

@@ -283,6 +283,12 @@ std::string resultsTail(const ResultsFile& file, bool anyChunk) {
                     {"undecided", s.undecided}, {"culledBy", std::move(culledBy)}};
     if (!s.savings.empty()) j["summary"]["savings"] = savingsJson(s.savings);
     j["warnings"] = file.warnings;
+    if (file.shard) {
+        const ShardRecord& sh = *file.shard;
+        j["shard"] = {{"index", sh.index},           {"count", sh.count},
+                      {"inputs", sh.inputs},         {"spaceChunks", sh.spaceChunks},
+                      {"assigned", sh.assigned},     {"spaceWarnings", sh.spaceWarnings}};
+    }
     // Every other key sorts after "chunks" (nlohmann's json keeps keys sorted), so the rest
     // of the file is this object's dump without its opening brace.
     const std::string rest = dumped(j);
@@ -322,6 +328,13 @@ Summary summarize(const std::vector<ChunkRecord>& chunks) {
 
 // ---------------------------------------------------------------------------------------
 // Reading
+
+Expected<ChunkRecord> parseChunkJson(const std::string& path, const std::string& text) {
+    Expected<ResultsFile> f = parseResults(path, resultsHead() + "\n" + text + resultsTail(ResultsFile{}, true));
+    if (!f) return f.error();
+    if (f->chunks.size() != 1) return badInput(path, 0, "malformed results: not one chunk");
+    return std::move(f->chunks.front());
+}
 
 Expected<ResultsFile> readResultsFile(const std::string& path) {
     Expected<std::string> text = readRegularFile(path, "results file");
@@ -391,6 +404,21 @@ Expected<ResultsFile> parseResults(const std::string& path, const std::string& t
         where = "top level";
         if (j.contains("space")) f.space = j["space"].get<std::string>();
         if (j.contains("warnings")) f.warnings = j["warnings"].get<std::vector<std::string>>();
+        if (j.contains("shard")) {
+            where = "shard";
+            const json& js = j["shard"];
+            ShardRecord sh;
+            sh.index = integer<int>(js, "index");
+            sh.count = integer<int>(js, "count");
+            if (sh.count < 1 || sh.index < 1 || sh.index > sh.count)
+                throw BadContent{"shard " + std::to_string(sh.index) + " of " + std::to_string(sh.count) + " does not exist"};
+            sh.inputs = js.at("inputs").get<std::string>();
+            sh.spaceChunks = integer<uint64_t>(js, "spaceChunks");
+            sh.assigned = js.at("assigned").get<std::vector<std::string>>();
+            sh.spaceWarnings = integer<uint64_t>(js, "spaceWarnings");
+            if (sh.spaceWarnings > f.warnings.size()) throw BadContent{"spaceWarnings is more than the warnings"};
+            f.shard = std::move(sh);
+        }
         if (j.contains("summary")) {
             where = "summary";
             f.summary = readSummary(j["summary"]);

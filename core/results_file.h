@@ -110,6 +110,21 @@ struct Summary {
     std::vector<LightSavingsRecord> savings;
 };
 
+// A shard's part of a bake (`bake --shard K/N`): what `merge` needs to check that the
+// shards belong to one bake and cover the space once. Left out of a whole bake's file.
+struct ShardRecord {
+    int index = 0, count = 0;  // K of N, K from 1
+    // Hash of everything every chunk's verdicts depend on (settings, lights, the options
+    // that change verdicts, every chunk's objects and mesh content), 16 hex digits: equal
+    // in every shard of one bake.
+    std::string inputs;
+    uint64_t spaceChunks = 0;          // chunk files in the space (all shards together)
+    std::vector<std::string> assigned;  // this shard's chunks, grid order (baked or refused)
+    // The first `spaceWarnings` warnings come from reading the space, the same in every
+    // shard; the rest are this shard's own (a chunk not written).
+    uint64_t spaceWarnings = 0;
+};
+
 struct ResultsFile {
     int version = kVersion;
     std::string space;  // the space directory as given to the bake
@@ -117,6 +132,7 @@ struct ResultsFile {
     std::vector<ChunkRecord> chunks;  // grid order, as baked
     Summary summary;
     std::vector<std::string> warnings;  // "file:line: message"
+    std::optional<ShardRecord> shard;   // only in a shard's file
 };
 
 // The summary the bake writes for these chunks. The reader uses it for a file without a
@@ -149,6 +165,9 @@ std::string writeResults(const ResultsFile& file);
 //
 // One chunk as it stands in the "chunks" array (indented for that depth, no separator):
 std::string chunkJson(const ChunkRecord& chunk);
+// One chunk back from chunkJson's text (kept by `bake --resume` for the chunks it skips),
+// read by the same reader as a whole file; `path` is only used in messages.
+Expected<ChunkRecord> parseChunkJson(const std::string& path, const std::string& text);
 // The opening of the file and of the "chunks" array.
 std::string resultsHead();
 // Everything after the last chunk; `anyChunk`: whether a chunk was written (the chunks of

@@ -10,6 +10,7 @@ packages=(
   nlohmann-json3-dev libcli11-dev
   libmeshoptimizer-dev gltfpack libdraco-dev
   googletest libgtest-dev libbenchmark-dev
+  slurm-wlm munge
   "$@"
 )
 missing=()

@@ -195,7 +195,7 @@ TEST(Messages, ReportsAndLightsSayWhyAndWhat) {
 TEST(Messages, HelpMatchesGolden) {
     fs::path dir = freshTestDir();
     std::string all;
-    for (const std::string command : {"", "bake", "sweep", "diff", "explain", "check", "render", "import", "export", "report"}) {
+    for (const std::string command : {"", "bake", "sweep", "diff", "explain", "check", "render", "import", "export", "report", "merge"}) {
         ASSERT_EQ(runCli(command + " --help", dir / "o", dir / "e"), 0) << command << readText(dir / "e");
         EXPECT_EQ(readText(dir / "e"), "");
         all += "$ shadowcull " + command + (command.empty() ? "" : " ") + "--help\n" + readText(dir / "o") + "\n";

@@ -1,0 +1,34 @@
+// bake --shard K/N: a deterministic partition of a space's chunks into N parts of about
+// equal work, so that N processes (a Slurm job array, docs/cluster.md) bake one space
+// together, each writing only its own chunk files, and `shadowcull merge` joins their
+// results files into the one a single bake would write.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/scene.h"
+
+namespace shadowcull::cli {
+
+struct ShardSpec {
+    int index = 0, count = 0;  // K of N, K from 1
+};
+
+// "K/N" with 1 <= K <= N <= kMaxShards, plain decimal; nothing for anything else.
+inline constexpr int kMaxShards = 100000;
+std::optional<ShardSpec> parseShard(const std::string& text);
+
+// Estimated work of baking chunk `c`: its objects (models and terrain that are not
+// skipped) times the lights that may reach its column (conservative reach: a point or
+// spot light counts unless its range sphere or cone surely misses the column), plus one
+// so that an empty chunk still costs its read and write. Unitless; only ratios matter.
+double chunkWork(const Space& space, ChunkCoord c);
+
+// The chunks of each of `count` shards, each in grid order: greedy by decreasing work
+// (ties in grid order), each chunk to the shard with the least work so far (ties: the
+// lowest index). Depends only on the space, so every shard computes the same partition.
+std::vector<std::vector<ChunkCoord>> partitionChunks(const Space& space, int count);
+
+}  // namespace shadowcull::cli

@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Submits a sharded bake of SPACE to Slurm: a job array of N bake tasks (bake.sbatch, one
+# shard each, --resume on) and a merge job that starts when all of them succeeded
+# (--dependency=afterok). Prints the two job ids. See docs/cluster.md.
+#
+#   scripts/slurm/submit.sh SPACE N [WORK]
+#
+# WORK (default ./shadowcull-farm-<space name>): shard results, the merged results.json and
+# the jobs' logs; on the shared filesystem, like SPACE and the shadowcull executable.
+# Environment: SHADOWCULL (executable; default: shadowcull on PATH, else this checkout's
+# build/bin/shadowcull), SHADOWCULL_OUT (write baked chunk files there instead of in place),
+# SHADOWCULL_BAKE_ARGS (more bake options for every shard), SHADOWCULL_SBATCH_ARGS (more
+# sbatch options for both jobs, e.g. "--partition=bake --time=02:00:00"),
+# SHADOWCULL_CPUS (CPUs per shard, default 1: the shard's --threads).
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+if [ $# -lt 2 ] || [ $# -gt 3 ]; then
+  echo "usage: $0 SPACE N [WORK]" >&2
+  exit 2
+fi
+space="$(realpath "$1")"
+n="$2"
+case "$n" in ''|*[!0-9]*|0) echo "$0: N must be a positive integer, not '$n'" >&2; exit 2 ;; esac
+[ -f "$space/space.xml" ] || { echo "$0: $space has no space.xml" >&2; exit 2; }
+work="$(realpath -m "${3:-shadowcull-farm-$(basename "$space")}")"
+exe="${SHADOWCULL:-$(command -v shadowcull || echo "$here/../../build/bin/shadowcull")}"
+exe="$(realpath "$exe")"
+[ -x "$exe" ] || { echo "$0: no shadowcull executable at $exe (set SHADOWCULL)" >&2; exit 2; }
+out="${SHADOWCULL_OUT:+$(realpath -m "$SHADOWCULL_OUT")}"
+mkdir -p "$work/logs"
+[ -n "$out" ] && mkdir -p "$out"
+export SHADOWCULL="$exe" SHADOWCULL_SPACE="$space" SHADOWCULL_SHARDS="$n" SHADOWCULL_WORK="$work" SHADOWCULL_OUT="$out"
+export SHADOWCULL_BAKE_ARGS="${SHADOWCULL_BAKE_ARGS:-}"
+cpus="${SHADOWCULL_CPUS:-1}"
+# shellcheck disable=SC2206
+extra=(${SHADOWCULL_SBATCH_ARGS:-})
+bake_id=$(sbatch --parsable --export=ALL --array="1-$n" --cpus-per-task="$cpus" --chdir="$work" \
+  --output="$work/logs/bake-%A_%a.log" "${extra[@]}" "$here/bake.sbatch")
+bake_id="${bake_id%%;*}"  # "ID;cluster" on federated clusters
+merge_id=$(sbatch --parsable --export=ALL --dependency="afterok:$bake_id" --kill-on-invalid-dep=yes --chdir="$work" \
+  --output="$work/logs/merge-%j.log" "${extra[@]}" "$here/merge.sbatch")
+merge_id="${merge_id%%;*}"
+echo "bake array: $bake_id ($n shards)"
+echo "merge: $merge_id (after the array succeeds) -> $work/results.json"
