@@ -146,7 +146,7 @@ TEST(Messages, OptionErrorsGiveTheRangeAndTheValue) {
         {"bake " + space + " --gpu-resolution 1e3", "--gpu-resolution: must be a whole number from 16 to 16384 (got '1e3')"},
         {"import '" + (dir / "space" / "space.xml").string() + "' out --scene abc", "--scene: must be a whole number, 0 or more (got 'abc')"},
         {"import '" + (dir / "space" / "space.xml").string() + "' out --chunk-size -5", "--chunk-size: must be from 1 to 100000 (got -5)"},
-        {"", "shadowcull: error: no command given (bake, sweep, diff, explain, check, render, import or export)"},
+        {"", "shadowcull: error: no command given (bake, sweep, diff, explain, check, render, preview, import or export)"},
     };
     for (const OptionCase& c : cases) {
         const int rc = runCli(c.args, dir / "o", dir / "e");
