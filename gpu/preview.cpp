@@ -255,7 +255,8 @@ std::vector<float> readRgba(const GlApi& gl, const RenderTarget& t, int attachme
 
 int defaultPcfRadius(double filterRadius, double texelDiagonal) {
     if (!(texelDiagonal > 0) || !(filterRadius > 0)) return 0;
-    const double r = std::floor(filterRadius / texelDiagonal - 0.5);
+    // (A hair of slack so that a footprint equal to the radius, up to rounding, fits.)
+    const double r = std::floor(filterRadius / texelDiagonal - 0.5 + 1e-9);
     if (!(r >= 0)) return 0;
     return int(std::min<double>(r, kMaxPcfRadius));
 }
@@ -348,7 +349,7 @@ Expected<PreviewReport> renderShadowPreview(const BakeWindow& w, const ChunkVerd
     std::vector<int> verdictObject(w.objects.size(), -1);
     for (size_t oi = 0; oi < cv.objects.size(); ++oi)
         if (cv.objects[oi].windowObject >= 0) verdictObject[size_t(cv.objects[oi].windowObject)] = int(oi);
-    const std::vector<GroupRange>& ranges = buffers.ranges();
+    const std::vector<GroupRange> ranges = buffers.ranges();  // a copy: kept after the buffers go
     std::vector<uint8_t> inAll(ranges.size()), inKept(ranges.size());
     for (size_t k = 0; k < ranges.size(); ++k) {
         const WindowObject& o = w.objects[ranges[k].object];
@@ -398,7 +399,9 @@ Expected<PreviewReport> renderShadowPreview(const BakeWindow& w, const ChunkVerd
     gl.Disable(GL_BLEND);
     std::vector<double> gpuMs[2], cpuMs[2];
     bool timerWorks = gl.GetError() == GL_NO_ERROR;
-    const int repeats = std::max(1, rq.timingRepeats);
+    // One round more than asked, the first not counted: it compiles shaders and allocates,
+    // and a device's first timer query can return garbage (llvmpipe's did: 3.4e6 ms).
+    const int repeats = std::max(1, rq.timingRepeats) + 1;
     for (int rep = 0; rep < repeats; ++rep)
         for (int m = 0; m < 2; ++m) {
             const std::vector<uint8_t>& drawn = m == 0 ? inAll : inKept;
@@ -429,12 +432,13 @@ Expected<PreviewReport> renderShadowPreview(const BakeWindow& w, const ChunkVerd
             }
             if (timerWorks) gl.EndQuery(GL_TIME_ELAPSED);
             gl.Finish();
-            cpuMs[m].push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+            if (rep > 0)
+                cpuMs[m].push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
             if (timerWorks) {
                 GLuint64 ns = 0;
                 gl.GetQueryObjectui64v(query, GL_QUERY_RESULT, &ns);
                 if (gl.GetError() != GL_NO_ERROR) timerWorks = false;
-                else gpuMs[m].push_back(double(ns) / 1e6);
+                else if (rep > 0) gpuMs[m].push_back(double(ns) / 1e6);
             }
         }
     for (int m = 0; m < 2; ++m) {
@@ -586,11 +590,11 @@ Expected<PreviewReport> renderShadowPreview(const BakeWindow& w, const ChunkVerd
                     metres(L.slopeBias));
     title.push_back("camera " + vecText(report.wsEye) + " -> " + vecText(report.wsTarget) + "; " + report.device);
     auto passText = [&](const ShadowPassTiming& t) {
-        return std::to_string(t.casters) + " casters, " + std::to_string(t.triangles) + " triangles, " +
+        return std::to_string(t.casters) + " casters, " + std::to_string(t.triangles) + " tris, " +
                std::to_string(t.drawCalls) + " draws, GPU " + msText(t.gpuMs);
     };
     const int top = gap + int(title.size()) * lineH + gap, labelH = 2 * lineH + 4;
-    const int pw = 3 * W + 4 * gap, ph = top + labelH + H + gap + 2 * lineH + gap;
+    const int pw = 3 * W + 4 * gap, ph = top + labelH + H + gap + 3 * lineH + gap;
     RgbImage pic(pw, ph, background);
     for (size_t k = 0; k < title.size(); ++k)
         drawText(pic, gap, gap + int(k) * lineH, title[k], text, k == 0 ? scale : std::max(1, scale));
@@ -606,16 +610,18 @@ Expected<PreviewReport> renderShadowPreview(const BakeWindow& w, const ChunkVerd
         pic.blit(*panels[k], x, top + labelH);
         pic.strokeRect(x - 1, top + labelH - 1, W + 2, H + 2, Rgb{90, 90, 100});
     }
-    const int ly = top + labelH + H + gap, lx = gap + 2 * (W + gap);
-    pic.fillRect(lx, ly, 10 * scale, 7 * scale, Rgb{255, 40, 40});
-    drawText(pic, lx + 14 * scale, ly, "differs where filterRadius covers the footprint: " + std::to_string(report.differingCovered) +
-             " (a false cull)", text, 1);
-    pic.fillRect(lx, ly + lineH, 10 * scale, 7 * scale, Rgb{255, 170, 0});
-    drawText(pic, lx + 14 * scale, ly + lineH,
+    // Legend under the panels, from the left (it must fit small frames too).
+    const int ly = top + labelH + H + gap, sw = 10 * scale;
+    drawText(pic, gap, ly, std::to_string(report.culledCasters) + " casters culled by the masks for this light", text, 1);
+    pic.fillRect(gap, ly + lineH, sw, 7 * scale, Rgb{255, 40, 40});
+    drawText(pic, gap + sw + 4, ly + lineH,
+             "differs where filterRadius covers the footprint: " + std::to_string(report.differingCovered) + " (a false cull)",
+             text, 1);
+    pic.fillRect(gap, ly + 2 * lineH, sw, 7 * scale, Rgb{255, 170, 0});
+    drawText(pic, gap + sw + 4, ly + 2 * lineH,
              "differs at texel scale, footprint beyond filterRadius: " +
                  std::to_string(report.differingPixels - report.differingCovered),
              text, 1);
-    drawText(pic, gap, ly, std::to_string(report.culledCasters) + " casters culled by the masks for this light", text, 1);
     report.pictureWidth = pw, report.pictureHeight = ph;
     if (Status s = writePng(pngPath, pic); !s) return s.error();
     return report;
