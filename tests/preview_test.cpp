@@ -278,3 +278,67 @@ TEST(Preview, CommandPrintsDifferingPixelsAndPassCosts) {
     EXPECT_EQ(cli::runPreview(o, out2, err2), 2);
     EXPECT_NE(err2.str().find("six numbers"), std::string::npos) << err2.str();
 }
+
+namespace {
+
+// A known answer at texel scale: a floor with a square hole, and a plate 1 m above that
+// covers all of the hole but a 2 cm margin, under a sun straight down. Every ray through the
+// plate falls through the hole (into nothing): with filterRadius 0 the plate's bit is 0. The
+// engine's map (256 texels over the floor's 80 m: 31 cm texels, their grid starting at the
+// floor's edge x = 10, v = -90) still shadows the floor just outside the hole from the
+// texels that straddle the gap with their centres over the plate (x in [48.75, 48.83]
+// reads the texel centred at 48.906), so the frames differ there, at texel scale. With
+// filterRadius 0.25 m (more than half a texel's diagonal, 0.22 m) the floor is within reach:
+// the plate is kept and the frames agree.
+fs::path writePlateOverHole(const fs::path& dir, double filterRadius) {
+    SpaceBuilder b;
+    auto ground = [](double x0, double z0, double x1, double z1) {
+        return MeshSpec::quad({x0, 0, z0}, {x0, 0, z1}, {x1, 0, z1}, {x1, 0, z0});
+    };
+    const double h0 = 48.83, h1 = 51.17;  // the hole
+    MeshSpec floor = ground(10, 10, 90, h0);
+    floor.append(ground(10, h1, 90, 90)).append(ground(10, h0, h0, h1)).append(ground(h1, h0, 90, h1));
+    b.addMesh("floor", floor.welded());
+    b.addMesh("plate", MeshSpec::quad({48.85, 1, 48.85}, {48.85, 1, 51.15}, {51.15, 1, 51.15}, {51.15, 1, 48.85}));
+    b.addModel("floor", Affine{});
+    b.addModel("plate", Affine{});
+    b.addLight(LightSpec::directional("sun", {0, -1, 0}).withBias(0.05).withFilterRadius(filterRadius));
+    b.write(dir.string());
+    return dir;
+}
+
+gpu::PreviewReport previewPlate(const fs::path& space, const fs::path& png) {
+    Expected<cli::ChunkBake> cb = bake(space, ChunkCoord{0, 0});
+    EXPECT_TRUE(cb) << (cb ? "" : cb.error().what());
+    if (!cb) return {};
+    gpu::PreviewRequest rq;
+    rq.shadowResolution = 256;
+    rq.wsEye = glm::dvec3(50, 6, 53);
+    rq.wsTarget = glm::dvec3(50, 0, 50);
+    rq.timingRepeats = 1;
+    Expected<gpu::PreviewReport> r = gpu::renderShadowPreview(cb->window, cb->verdicts, rq, png.string());
+    EXPECT_TRUE(r) << (r ? "" : r.error().what());
+    return r ? *r : gpu::PreviewReport{};
+}
+
+}  // namespace
+
+TEST(Preview, PlateOverAHoleDiffersAtTexelScaleOnlyWithoutFilter) {
+    REQUIRE_GL();
+    const fs::path dir = freshTestDir();
+    const gpu::PreviewReport r0 = previewPlate(writePlateOverHole(dir / "r0", 0.0), dir / "r0.png");
+    EXPECT_EQ(r0.culledCasters, 5u);  // the plate, and the floor's four quads (nothing under them)
+    EXPECT_GT(r0.differingPixels, 0u) << describe(r0);  // texel scale: the floor at the hole's rim
+    EXPECT_EQ(r0.differingCovered, 0u);
+    for (const gpu::DifferingPixel& d : r0.listed) {
+        EXPECT_NE(d.caster.find("model #1"), std::string::npos) << d.caster;  // the plate
+        EXPECT_LT(std::abs(std::max(std::abs(d.wsReceiver.x - 50), std::abs(d.wsReceiver.z - 50)) - 1.17), 0.35)
+            << "not at the hole's rim: " << d.wsReceiver.x << ", " << d.wsReceiver.z;
+    }
+    std::cout << "plate over a hole, filterRadius 0: " << r0.differingPixels << " differing pixels of "
+              << r0.receiverPixels << "\n";
+    const gpu::PreviewReport r2 = previewPlate(writePlateOverHole(dir / "r2", 0.25), dir / "r2.png");
+    EXPECT_EQ(r2.culledCasters, 4u);  // the floor's quads only: the plate is kept
+    EXPECT_EQ(r2.differingPixels, 0u) << describe(r2);
+    EXPECT_GT(r2.coveredPixels, 10000u);
+}
