@@ -21,6 +21,7 @@
 #include "cli/shard.h"
 #include "cli/gltf_commands.h"
 #include "cli/render_command.h"
+#include "cli/preview_command.h"
 #include "cli/report.h"
 #include "cli/savings_report.h"
 #include "cli/sweep.h"
@@ -218,6 +219,21 @@ int main(int argc, char** argv) {
     render->add_option("--method", renderMethod, "Colour by the analytic verdicts (default) or the GPU method's")
         ->check(oneOf({"analytic", "gpu"}));
 
+    PreviewOptions previewOpt;
+    CLI::App* preview = app.add_subcommand("preview", "Render a camera view shadowed as an engine does, with every caster and with the kept ones (PNG)");
+    preview->add_option("space", previewOpt.bake.spaceDir, "Space directory")->required()->check(existingDirectory());
+    preview->footer(kReportExitCodes);
+    preview->add_option("--chunk", previewOpt.chunk, "Chunk (XXXXZZZZo or XXXXZZZZo.chunk)")->required();
+    preview->add_option("--light", previewOpt.light, "Light (1-based, as in space.xml)")->required()->check(atLeast(1));
+    preview->add_option("--camera", previewOpt.camera, "EYE_X,EYE_Y,EYE_Z,TARGET_X,TARGET_Y,TARGET_Z in world metres (default: the chunk from above)");
+    preview->add_option("--shadow-resolution", previewOpt.shadowResolution, "Texels per side of each shadow-map view")
+        ->check(within(16, 8192))
+        ->capture_default_str();
+    preview->add_option("--pcf-radius", previewOpt.pcfRadius, "PCF radius in texels (default: the largest whose footprint fits the light's filterRadius)")
+        ->check(within(0, 8));
+    preview->add_option("--out", previewOpt.outPath, "PNG file")->capture_default_str();
+    preview->add_option("--res", previewOpt.bake.resourceRoot, "Resource root");
+
     gltf::ImportOptions importOpt;
     std::string importSun;
     CLI::App* import = app.add_subcommand("import", "Turn a glTF 2.0 scene (nodes, meshes, KHR_lights_punctual) into a space");
@@ -300,6 +316,7 @@ int main(int argc, char** argv) {
         ro.bake.gpuBaseline = renderMethod == "gpu";
         return runRender(ro, std::cout, std::cerr);
     }
+    if (*preview) return runPreview(previewOpt, std::cout, std::cerr);
     if (*explain) return runExplain(explainOpt, std::cout, std::cerr);
     if (*import) return runImport(importOpt, importSun, std::cout, std::cerr);
     if (*exportCmd) return runExport(exportOpt, std::cout, std::cerr);

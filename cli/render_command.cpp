@@ -9,36 +9,49 @@ namespace shadowcull::cli {
 
 namespace fs = std::filesystem;
 
-int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err) {
-    std::optional<ChunkCoord> c = parseChunkArgument(options.chunk);
+int bakeChunkForLight(const BakeOptions& options, const std::string& chunk, int light, const std::string& outPath,
+                      std::ostream& err, ChunkBake& result, ChunkCoord& coord) {
+    std::optional<ChunkCoord> c = parseChunkArgument(chunk);
     if (!c) {
-        err << "shadowcull: error: " << options.chunk << ": not a chunk name (XXXXZZZZo.chunk)\n";
+        err << "shadowcull: error: " << chunk << ": not a chunk name (XXXXZZZZo.chunk)\n";
         return kExitUsage;
     }
-    BakeOptions bake = options.bake;
+    BakeOptions bake = options;
     bake.write = false;
     Expected<ChunkBake> cb = bakeChunk(bake, *c);
     if (!cb) {
         err << "shadowcull: error: " << cb.error().what() << "\n";
         return exitCodeFor(cb.error().kind);
     }
-    if (Status s = refuseInputAsOutput(options.outPath, cb->space->inputFiles(), "--out"); !s) {
+    if (Status s = refuseInputAsOutput(outPath, cb->space->inputFiles(), "--out"); !s) {
         err << "shadowcull: error: " << s.error().what() << "\n";
         return exitCodeFor(s.error().kind);
     }
     const std::vector<Light>& lights = cb->window.lsLights;
-    if (options.light < 1 || size_t(options.light) > lights.size()) {
+    if (light < 1 || size_t(light) > lights.size()) {
         std::string names;
         for (size_t k = 0; k < lights.size(); ++k) names += (k ? ", " : "") + std::to_string(k + 1) + " '" + lights[k].name + "'";
-        err << "shadowcull: error: --light " << options.light << ": " << (fs::path(bake.spaceDir) / "space.xml").string()
+        err << "shadowcull: error: --light " << light << ": " << (fs::path(bake.spaceDir) / "space.xml").string()
             << " has " << lights.size() << (lights.size() == 1 ? " light" : " lights") << " (" << names
             << "); nothing was written\n";
         return kExitUsage;
     }
+    result = std::move(*cb);
+    coord = *c;
+    return kExitOk;
+}
+
+int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err) {
+    ChunkBake bake;
+    ChunkCoord coord;
+    if (int code = bakeChunkForLight(options.bake, options.chunk, options.light, options.outPath, err, bake, coord); code != kExitOk)
+        return code;
+    const ChunkBake* cb = &bake;
+    const std::optional<ChunkCoord> c = coord;
     gpu::RenderRequest rq;
     rq.light = options.light - 1;
-    rq.resolution = bake.gpuResolution;
-    rq.colouredBy = bake.gpuBaseline ? "the original GPU method's verdicts" : "analytic verdicts";
+    rq.resolution = options.bake.gpuResolution;
+    rq.colouredBy = options.bake.gpuBaseline ? "the original GPU method's verdicts" : "analytic verdicts";
     Expected<gpu::RenderReport> r = gpu::renderLightView(cb->window, cb->verdicts, rq, options.outPath);
     if (!r) {
         err << "shadowcull: error: " << r.error().what() << "\n";

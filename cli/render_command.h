@@ -19,4 +19,10 @@ struct RenderOptions {
 
 int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err);
 
+// What `render` and `preview` share: parses the chunk name, bakes it (dry run), refuses an
+// output that is one of the bake's inputs and a light the space does not have (1-based),
+// saying why on `err`. Returns kExitOk with `cb` and `coord` set, or the exit code.
+int bakeChunkForLight(const BakeOptions& options, const std::string& chunk, int light, const std::string& outPath,
+                      std::ostream& err, ChunkBake& cb, ChunkCoord& coord);
+
 }  // namespace shadowcull::cli

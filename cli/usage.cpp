@@ -169,7 +169,7 @@ std::string formatParseFailure(const CLI::App* app, const CLI::Error& e) {
     // CLI11's own wording where no validator of ours speaks first.
     std::string what = e.what();
     if (what == "A subcommand is required")
-        what = "no command given (bake, sweep, diff, explain, check, render, import, export or report)";
+        what = "no command given (bake, sweep, diff, explain, check, render, preview, import, export, report or merge)";
     const std::string convert = "Could not convert: ";
     if (what.rfind(convert, 0) == 0)
         if (const size_t eq = what.find(" = ", convert.size()); eq != std::string::npos)

@@ -43,6 +43,7 @@ namespace shadowcull::gpu {
     X(PFNGLREADBUFFERPROC, ReadBuffer)                                               \
     X(PFNGLPIXELSTOREIPROC, PixelStorei)                                             \
     X(PFNGLDRAWBUFFERPROC, DrawBuffer)                                               \
+    X(PFNGLDRAWBUFFERSPROC, DrawBuffers)                                             \
     X(PFNGLGENBUFFERSPROC, GenBuffers)                                               \
     X(PFNGLDELETEBUFFERSPROC, DeleteBuffers)                                         \
     X(PFNGLBINDBUFFERPROC, BindBuffer)                                               \
@@ -78,6 +79,7 @@ namespace shadowcull::gpu {
     X(PFNGLUNIFORM1FPROC, Uniform1f)                                                 \
     X(PFNGLUNIFORM1UIPROC, Uniform1ui)                                               \
     X(PFNGLUNIFORM2FPROC, Uniform2f)                                                 \
+    X(PFNGLUNIFORM2IPROC, Uniform2i)                                                 \
     X(PFNGLUNIFORM3FPROC, Uniform3f)                                                 \
     X(PFNGLUNIFORM4FPROC, Uniform4f)                                                 \
     X(PFNGLUNIFORMMATRIX4FVPROC, UniformMatrix4fv)                                   \

@@ -16,13 +16,6 @@ namespace shadowcull::gpu {
 
 namespace {
 
-const char* kRenderVs = R"(#version 430 core
-layout(location = 0) in vec3 aPos;
-uniform mat4 uClip;
-out vec3 vPos;
-void main() { vPos = aPos; gl_Position = uClip * vec4(aPos, 1.0); }
-)";
-
 const char* kRenderFs = R"(#version 430 core
 in vec3 vPos;
 uniform vec3 uColour;
@@ -95,18 +88,6 @@ void frameOn(LightView& v, const Aabb& box) {
     v.u0 = cu - side / 2, v.u1 = cu + side / 2, v.v0 = cv - side / 2, v.v1 = cv + side / 2;
 }
 
-// Window-local bounds of each group of a window object.
-std::vector<Aabb> groupBounds(const BakeWindow& w, const WindowTriangles& tris, size_t object) {
-    const WindowObject& o = w.objects[object];
-    std::vector<Aabb> boxes(o.mesh->groups.size());
-    for (uint32_t t : tris.object(object).triangles) {
-        const size_t g = size_t(o.mesh->triangleGroup[t]);
-        if (g < boxes.size())
-            for (uint32_t v : o.mesh->triangles[t]) boxes[g].extend(tris.object(object).positions[v]);
-    }
-    return boxes;
-}
-
 bool overlapsFrame(const LightView& v, const Aabb& b) {
     if (b.empty()) return false;
     double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
@@ -162,7 +143,7 @@ Expected<RenderReport> renderLightView(const BakeWindow& w, const ChunkVerdicts&
     Expected<std::unique_ptr<GlSession>> session = openGlSession();
     if (!session) return session.error();
     const GlApi& gl = (*session)->gl;
-    Expected<GLuint> prog = gl.program(kRenderVs, nullptr, kRenderFs);
+    Expected<GLuint> prog = gl.program(kWindowPositionVs, nullptr, kRenderFs);
     if (!prog) return prog.error();
     Expected<RenderTarget> target = makeRenderTarget(gl, width, height, {GL_RGBA8}, true);
     if (!target) return target.error();

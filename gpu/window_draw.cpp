@@ -2,6 +2,24 @@
 
 namespace shadowcull::gpu {
 
+const char* const kWindowPositionVs = R"(#version 430 core
+layout(location = 0) in vec3 aPos;
+uniform mat4 uClip;
+out vec3 vPos;
+void main() { vPos = aPos; gl_Position = uClip * vec4(aPos, 1.0); }
+)";
+
+std::vector<Aabb> groupBounds(const BakeWindow& w, const WindowTriangles& tris, size_t object) {
+    const WindowObject& o = w.objects[object];
+    std::vector<Aabb> boxes(o.mesh->groups.size());
+    for (uint32_t t : tris.object(object).triangles) {
+        const size_t g = size_t(o.mesh->triangleGroup[t]);
+        if (g < boxes.size())
+            for (uint32_t v : o.mesh->triangles[t]) boxes[g].extend(tris.object(object).positions[v]);
+    }
+    return boxes;
+}
+
 Status WindowBuffers::upload(const GlApi& gl, const BakeWindow& w, const WindowTriangles& tris) {
     std::vector<float> data;
     ranges_.clear();

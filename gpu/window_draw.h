@@ -17,6 +17,10 @@ struct GroupRange {
     GLsizei count = 0;    // vertices (3 per triangle)
 };
 
+// Vertex shader of the plain passes: window-local position aPos through uClip, passed on as
+// vPos (window-local) for the fragment shader.
+extern const char* const kWindowPositionVs;
+
 class WindowBuffers {
 public:
     Status upload(const GlApi& gl, const BakeWindow& w, const WindowTriangles& tris);
@@ -28,6 +32,10 @@ private:
     GLuint vao_ = 0, vbo_ = 0;
     std::vector<GroupRange> ranges_;
 };
+
+// Window-local bounds of each primitive group of window object `object` (of its triangles
+// with three distinct vertices; empty for a group without any).
+std::vector<Aabb> groupBounds(const BakeWindow& w, const WindowTriangles& tris, size_t object);
 
 // A float texture (R32F) holding, over the window's x-z rectangle seen from above, the
 // lowest terrain surface (window-local y), +1e30 where there is no terrain.

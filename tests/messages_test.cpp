@@ -134,6 +134,7 @@ TEST(Messages, OptionErrorsGiveTheRangeAndTheValue) {
         {"render " + space + " --chunk 00000000o --light 0 --out x.png", "shadowcull: error: --light: must be 1 or more (got 0)"},
         {"render " + space + " --chunk 00000000o --light two --out x.png", "--light: must be a whole number, 1 or more (got 'two')"},
         {"render " + space + " --chunk 00000000o --out x.png", "--light is required"},
+        {"preview " + space + " --chunk 00000000o --light 1 --pcf-radius 9", "--pcf-radius: must be from 0 to 8 (got 9)"},
         {"bake " + space + " --threads -1", "shadowcull: error: --threads: must be 0 or more (got -1)"},
         {"bake " + space + " --samples 0", "--samples: must be from 1 to 1048576 (got 0)"},
         {"bake " + space + " --gpu-resolution 8", "--gpu-resolution: must be from 16 to 16384 (got 8)"},
@@ -146,7 +147,7 @@ TEST(Messages, OptionErrorsGiveTheRangeAndTheValue) {
         {"bake " + space + " --gpu-resolution 1e3", "--gpu-resolution: must be a whole number from 16 to 16384 (got '1e3')"},
         {"import '" + (dir / "space" / "space.xml").string() + "' out --scene abc", "--scene: must be a whole number, 0 or more (got 'abc')"},
         {"import '" + (dir / "space" / "space.xml").string() + "' out --chunk-size -5", "--chunk-size: must be from 1 to 100000 (got -5)"},
-        {"", "shadowcull: error: no command given (bake, sweep, diff, explain, check, render, import, export or report)"},
+        {"", "shadowcull: error: no command given (bake, sweep, diff, explain, check, render, preview, import, export, report or merge)"},
     };
     for (const OptionCase& c : cases) {
         const int rc = runCli(c.args, dir / "o", dir / "e");
@@ -195,7 +196,7 @@ TEST(Messages, ReportsAndLightsSayWhyAndWhat) {
 TEST(Messages, HelpMatchesGolden) {
     fs::path dir = freshTestDir();
     std::string all;
-    for (const std::string command : {"", "bake", "sweep", "diff", "explain", "check", "render", "import", "export", "report", "merge"}) {
+    for (const std::string command : {"", "bake", "sweep", "diff", "explain", "check", "render", "preview", "import", "export", "report", "merge"}) {
         ASSERT_EQ(runCli(command + " --help", dir / "o", dir / "e"), 0) << command << readText(dir / "e");
         EXPECT_EQ(readText(dir / "e"), "");
         all += "$ shadowcull " + command + (command.empty() ? "" : " ") + "--help\n" + readText(dir / "o") + "\n";
