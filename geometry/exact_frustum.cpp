@@ -453,6 +453,21 @@ bool FrustumFilter::certainlyMisses(const Triangle& r, double beta) const {
     return false;
 }
 
+bool FrustumFilter::allInFront(const glm::dvec3* pts, size_t count, double beta) const {
+    if (!valid_) return false;
+    if (!light_.directional) beta = 0;
+    const Plane& p = planes_[3];
+    const double shift = beta * nearK_;
+    for (size_t i = 0; i < count; ++i) {
+        const glm::dvec3 d = pts[i] - p.o;
+        const double v = glm::dot(p.n, d) + p.k - shift;
+        const double bound =
+            1e-12 * (p.scale * (std::abs(d.x) + std::abs(d.y) + std::abs(d.z)) + std::abs(p.k) + std::abs(shift)) + 1e-300;
+        if (!(v < -bound)) return false;
+    }
+    return true;
+}
+
 bool receiverPlaneInFrontOf(const Triangle& r, const glm::dvec3* pts, int count, const LightGeometry& light, double beta,
                             double slack, bool sharedOnPlane) {
     const glm::dvec3 e1 = r[1] - r[0], e2 = r[2] - r[0];

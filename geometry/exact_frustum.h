@@ -90,6 +90,11 @@ public:
     // for directional lights; point lights are filtered as if it were 0 (weaker, still
     // sound).
     bool certainlyMisses(const Triangle& receiver, double beta) const;
+    // True when every one of `pts` lies in front of the caster's plane moved back by the bias
+    // (beyond rounding), so that no point of their convex hull is behind the caster by more
+    // than it; true for none at all. False when the filter is off (edge-on caster). Used
+    // for the part of a receiver above the ground (the terrain rule).
+    bool allInFront(const glm::dvec3* pts, size_t count, double beta) const;
 
 private:
     struct Plane {

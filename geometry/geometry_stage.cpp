@@ -73,6 +73,24 @@ bool underTerrain(const BakeWindow& w, const std::array<glm::dvec3, 2>& box, dou
     return ground && box[1].y < *ground - w.terrainTolerance - margin;
 }
 
+// The part of receiver triangle `t` (box `box`) that may be above the terrain or within
+// the tolerance under it: `t` clipped in double to y >= (the lowest surface over its box) -
+// tolerance - margin. Every point of `t` that the terrain rule lets receive lies in the
+// convex hull of the result (the margin covers the clipping's rounding). False when the
+// box is not wholly over terrain (the rule then says nothing).
+bool partAboveGround(const BakeWindow& w, const Triangle& t, const Aabb& box, double margin, std::vector<glm::dvec3>& out) {
+    out.clear();
+    const std::optional<double> ground = w.lsTerrainMinOver(box.min.x, box.min.z, box.max.x, box.max.z);
+    if (!ground) return false;
+    const double level = *ground - w.terrainTolerance - margin;
+    for (int k = 0; k < 3; ++k) {
+        const glm::dvec3 &p = t[size_t(k)], &q = t[size_t((k + 1) % 3)];
+        if (p.y >= level) out.push_back(p);
+        if ((p.y >= level) != (q.y >= level)) out.push_back(p + (q - p) * ((level - p.y) / (q.y - p.y)));
+    }
+    return true;
+}
+
 // Per receiver triangle (object, triangle) and light, computed on first use (most
 // receivers of a window are never tested; an object's table is made when a query first
 // reaches it): -1 when the receiver rules exclude it, else a lower bound of the bias
@@ -264,12 +282,21 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     std::optional<ShadowQuery> query;
                     if (!exhaustive) query.emplace(t, lg, L.filterRadius, margin);
                     std::vector<Triangle> ground;  // terrain under a reached part (the terrain rule)
+                    std::vector<glm::dvec3> above;  // a receiver's part above the ground (the terrain rule)
                     auto test = [&](uint32_t k, uint32_t tri) {
                         std::optional<Receiver> made;
                         const double beta = receiver(k, tri, made);
                         if (beta < 0) return false;
                         const Receiver& r = *made;
                         if (!exhaustive && (query->misses(r.tri) || filter.certainlyMisses(r.tri, beta))) return false;
+                        // The terrain rule, cheaply: the part of the receiver not buried
+                        // deeper than the tolerance lies wholly in front of the caster (a
+                        // rock's crown beside a terrain triangle whose column reaches only
+                        // its buried side).
+                        if (!exhaustive && window.hasTerrain && !r.terrain &&
+                            partAboveGround(window, r.tri, r.box, margin, above) &&
+                            filter.allInFront(above.data(), above.size(), beta))
+                            return false;
                         ++tests;
                         if (!frustum) frustum.emplace(t, lg, L.filterRadius);
                         std::array<glm::dvec3, 2> part;
