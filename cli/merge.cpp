@@ -41,11 +41,16 @@ MergeOutcome mergeShards(const std::vector<std::pair<std::string, results::Resul
             return refused(kExitBadInput, path + ": not a shard's results (no \"shard\" part: written by a bake without --shard)");
 
     // 1. One bake: the same inputs, options, space, lights and shard count.
-    const auto& [firstPath, first] = shards.front();
+    // (Plain references, not structured bindings: clang's C++17 refuses lambdas that
+    // capture those, and the fuzz build is clang.)
+    const std::string& firstPath = shards.front().first;
+    const results::ResultsFile& first = shards.front().second;
     const results::ShardRecord& s0 = *first.shard;
     const std::vector<std::string> spaceWarnings(first.warnings.begin(), first.warnings.begin() + std::ptrdiff_t(s0.spaceWarnings));
     const std::string lights0 = lightsText(first);
-    for (const auto& [path, f] : shards) {
+    for (const auto& shard : shards) {
+        const std::string& path = shard.first;
+        const results::ResultsFile& f = shard.second;
         const results::ShardRecord& s = *f.shard;
         auto differ = [&](const std::string& what) {
             return refused(kExitShardsDiffer, path + " (shard " + shardName(s) + ") and " + firstPath + " (shard " + shardName(s0) +
