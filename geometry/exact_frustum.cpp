@@ -25,13 +25,22 @@ using Vector = K::Vector_3;
 Point toPoint(const glm::dvec3& p) { return Point(p.x, p.y, p.z); }
 Vector toVector(const glm::dvec3& v) { return Vector(v.x, v.y, v.z); }
 
-// An affine function f(x) = n . (x - o) + k; the half-space is f >= 0 (or > 0).
-struct HalfSpace {
-    Vector n;
-    Point o;
-    FT k;
-    FT operator()(const Point& x) const { return n * (x - o) + k; }
+// An affine function f(x) = n . (x - o) + k; the half-space is f >= 0 (or > 0). Over the
+// exact kernel, or over intervals (the fast path, below).
+template <class Kn>
+struct HalfSpaceT {
+    typename Kn::Vector_3 n;
+    typename Kn::Point_3 o;
+    typename Kn::FT k;
+    typename Kn::FT operator()(const typename Kn::Point_3& x) const { return n * (x - o) + k; }
 };
+using HalfSpace = HalfSpaceT<K>;
+// Intervals in double (CGAL's filter arithmetic, rounding upward under
+// Protect_FPU_rounding): each sign either certain or an Uncertain_conversion_exception.
+using IK = CGAL::Simple_cartesian<CGAL::Interval_nt<false>>;
+using IHalfSpace = HalfSpaceT<IK>;
+
+IHalfSpace approx(const HalfSpace& h) { return IHalfSpace{h.n.approx(), h.o.approx(), h.k.approx()}; }
 
 // Upper bound of |n| in double, for moving a half-space outward by a distance.
 double normUpper(const Vector& n) {
@@ -39,20 +48,25 @@ double normUpper(const Vector& n) {
     return std::sqrt(x * x + y * y + z * z) * (1.0 + 1e-9) + 1e-300;
 }
 
-// Keeps the part of the convex polygon `poly` where f >= 0 (Sutherland-Hodgman, exact).
-void clip(std::vector<Point>& poly, const HalfSpace& f) {
+// Keeps the part of the convex polygon `poly` where f >= 0 (Sutherland-Hodgman). Exact
+// over K; over intervals a sign that is not certain throws (the caller then starts over
+// exactly).
+template <class Kn>
+void clip(std::vector<typename Kn::Point_3>& poly, const HalfSpaceT<Kn>& f) {
     if (poly.empty()) return;
-    std::vector<Point> out;
+    using P = typename Kn::Point_3;
+    using N = typename Kn::FT;
+    std::vector<P> out;
     out.reserve(poly.size() + 1);
     const size_t n = poly.size();
-    std::vector<FT> v(n);
+    std::vector<N> v(n);
     for (size_t i = 0; i < n; ++i) v[i] = f(poly[i]);
     for (size_t i = 0; i < n; ++i) {
         const size_t j = (i + 1) % n;
-        const CGAL::Sign si = CGAL::sign(v[i]), sj = CGAL::sign(v[j]);
+        const CGAL::Sign si = CGAL::sign(v[i]), sj = CGAL::sign(v[j]);  // uncertain: throws
         if (si != CGAL::NEGATIVE) out.push_back(poly[i]);
         if ((si == CGAL::POSITIVE && sj == CGAL::NEGATIVE) || (si == CGAL::NEGATIVE && sj == CGAL::POSITIVE)) {
-            const FT t = v[i] / (v[i] - v[j]);
+            const N t = v[i] / (v[i] - v[j]);
             out.push_back(poly[i] + (poly[j] - poly[i]) * t);
         }
         if (n == 1) break;
@@ -108,8 +122,22 @@ struct ExactFrustum::Impl {
     };
     std::vector<Entry> entries;
 
+    // The same half-spaces over intervals, for the fast path of reaches() (made by
+    // makeApprox() once the exact ones are built).
+    std::vector<IHalfSpace> iSides;
+    IHalfSpace iNear;  // k: the dilation only; the bias term is added per query
+    IK::FT iNearK;
+    struct IEntry {
+        IHalfSpace h;  // k: the dilation only
+        IK::FT mDotD;
+    };
+    std::vector<IEntry> iEntries;
+    void makeApprox();
+
     std::vector<Point> insideSides(const Triangle& r) const;
     std::vector<HalfSpace> opens(double beta) const;
+    std::vector<IK::Point_3> iInsideSides(const Triangle& r) const;
+    std::vector<IHalfSpace> iOpens(double beta) const;
 };
 
 namespace {
@@ -236,6 +264,7 @@ ExactFrustum::ExactFrustum(const Triangle& t, const LightGeometry& light, double
     const CGAL::Sign s = CGAL::sign(facing);
     if (s == CGAL::ZERO) {
         m.degenerate = !(light.directional ? buildSheet(m, v, d, dilation) : buildPointSheet(m, v, L, dilation));
+        if (!m.degenerate) m.makeApprox();
         return;
     }
     if (s == CGAL::NEGATIVE) n = -n;
@@ -272,6 +301,7 @@ ExactFrustum::ExactFrustum(const Triangle& t, const LightGeometry& light, double
         m.fastSides.push_back(FastHalfSpace{fn, light.directional ? tp : light.position, dil,
                                             glm::length(e1) * glm::length(e2) + glm::length(fn)});
     }
+    m.makeApprox();
 }
 
 ExactFrustum::~ExactFrustum() = default;
@@ -285,21 +315,69 @@ namespace {
 // True when the convex polygon `poly` (already inside every closed half-space of the
 // frustum) holds a point strictly inside all of `opens`: clipped by their closures, each
 // must keep some vertex strictly inside (then the vertices' mean is inside all of them).
-bool holdsStrictlyInside(std::vector<Point> poly, const std::vector<HalfSpace>& opens) {
-    for (const HalfSpace& h : opens) {
+template <class Kn>
+bool holdsStrictlyInside(std::vector<typename Kn::Point_3> poly, const std::vector<HalfSpaceT<Kn>>& opens) {
+    for (const HalfSpaceT<Kn>& h : opens) {
         clip(poly, h);
         if (poly.empty()) return false;
     }
-    for (const HalfSpace& h : opens) {
+    for (const HalfSpaceT<Kn>& h : opens) {
         bool strictly = false;
-        for (const Point& p : poly)
-            if (CGAL::sign(h(p)) == CGAL::POSITIVE) {
+        for (const typename Kn::Point_3& p : poly)
+            if (CGAL::Sign(CGAL::sign(h(p))) == CGAL::POSITIVE) {
                 strictly = true;
                 break;
             }
         if (!strictly) return false;
     }
     return true;
+}
+
+// The terrain rule on the convex polygon `poly` (inside the frustum's closed sides): some
+// point of it strictly inside all `opens`, in the vertical prism of a `ground` triangle
+// and not more than `tolerance` under its plane (see reachesAboveGround).
+template <class Kn>
+bool aboveGround(const std::vector<typename Kn::Point_3>& poly, const std::vector<HalfSpaceT<Kn>>& opens,
+                 const std::vector<Triangle>& ground, double tolerance) {
+    using P = typename Kn::Point_3;
+    using V = typename Kn::Vector_3;
+    using N = typename Kn::FT;
+    const V up(0, 1, 0);
+    for (const Triangle& g : ground) {
+        const P v[3] = {P(g[0].x, g[0].y, g[0].z), P(g[1].x, g[1].y, g[1].z), P(g[2].x, g[2].y, g[2].z)};
+        // The plane, its normal turned up; "not deeper than the tolerance under it":
+        // n . (x - a) + tolerance * n.y >= 0 (n.y > 0; closed: at the limit q receives).
+        V n = CGAL::cross_product(v[1] - v[0], v[2] - v[0]);
+        const CGAL::Sign ny = CGAL::sign(n.y());
+        if (ny == CGAL::ZERO) return true;  // vertical or no area: stay safe
+        if (ny == CGAL::NEGATIVE) n = -n;
+        std::vector<P> part = poly;
+        // The vertical prism over the triangle: three closed half-spaces through its edges.
+        for (int e = 0; e < 3 && !part.empty(); ++e) {
+            const P& p = v[e];
+            const P& q = v[(e + 1) % 3];
+            V side = CGAL::cross_product(q - p, up);  // horizontal, across the edge
+            if (CGAL::Sign(CGAL::sign(side * (v[(e + 2) % 3] - p))) == CGAL::NEGATIVE) side = -side;
+            clip(part, HalfSpaceT<Kn>{side, p, N(0)});
+        }
+        if (part.empty()) continue;
+        clip(part, HalfSpaceT<Kn>{n, v[0], N(tolerance) * n.y()});
+        if (!part.empty() && holdsStrictlyInside<Kn>(part, opens)) return true;
+    }
+    return false;
+}
+
+template <class PointT>
+std::array<glm::dvec3, 2> boxOf(const std::vector<PointT>& poly) {
+    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+    for (const PointT& p : poly) {
+        const std::pair<double, double> c[3] = {CGAL::to_interval(p.x()), CGAL::to_interval(p.y()), CGAL::to_interval(p.z())};
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], c[a].first);
+            hi[a] = std::max(hi[a], c[a].second);
+        }
+    }
+    return {lo, hi};
 }
 
 }  // namespace
@@ -324,59 +402,82 @@ std::vector<HalfSpace> ExactFrustum::Impl::opens(double beta) const {
     return out;
 }
 
+void ExactFrustum::Impl::makeApprox() {
+    iSides.clear();
+    for (const HalfSpace& h : sides) iSides.push_back(approx(h));
+    iNear = IHalfSpace{nearN.approx(), nearO.approx(), IK::FT(nearDilate)};
+    iNearK = nearK.approx();
+    iEntries.clear();
+    for (const Entry& e : entries) iEntries.push_back({IHalfSpace{e.m.approx(), e.e.approx(), IK::FT(e.dilate)}, e.mDotD.approx()});
+}
+
+std::vector<IK::Point_3> ExactFrustum::Impl::iInsideSides(const Triangle& r) const {
+    for (const FastHalfSpace& f : fastSides)
+        if (f.rejects(r)) return {};
+    std::vector<IK::Point_3> poly = {IK::Point_3(r[0].x, r[0].y, r[0].z), IK::Point_3(r[1].x, r[1].y, r[1].z),
+                                     IK::Point_3(r[2].x, r[2].y, r[2].z)};
+    for (const IHalfSpace& h : iSides) {
+        clip(poly, h);
+        if (poly.empty()) break;
+    }
+    return poly;
+}
+
+std::vector<IHalfSpace> ExactFrustum::Impl::iOpens(double beta) const {
+    const IK::FT b(beta);
+    const IK::FT factor = directional ? b : IK::FT(1) + b / IK::FT(dmax);
+    std::vector<IHalfSpace> out = {IHalfSpace{iNear.n, iNear.o, iNear.k - factor * iNearK}};
+    for (const IEntry& e : iEntries) out.push_back(IHalfSpace{e.h.n, e.h.o, e.h.k - b * e.mDotD});
+    return out;
+}
+
 bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3, 2>* reachedPart) const {
     const Impl& m = *impl_;
     if (m.degenerate) {
         if (reachedPart) *reachedPart = {glm::min(glm::min(r[0], r[1]), r[2]), glm::max(glm::max(r[0], r[1]), r[2])};
         return true;
     }
+    // Fast path: the same steps over intervals. Every interval encloses the exact value of
+    // the step it stands for, so a sign that is certain there is the exact sign, and the
+    // answer is the exact one; the first uncertain sign throws and the exact kernel
+    // decides from the start (most tests never need it: CGAL's lazy kernel costs ~10x).
+    try {
+        CGAL::Protect_FPU_rounding<true> upward;
+        const std::vector<IK::Point_3> poly = m.iInsideSides(r);
+        if (poly.empty()) return false;
+        const bool reached = holdsStrictlyInside<IK>(poly, m.iOpens(beta));
+        if (reached && reachedPart) *reachedPart = boxOf(poly);
+        return reached;
+    } catch (const CGAL::Uncertain_conversion_exception&) {
+    }
     const std::vector<Point> poly = m.insideSides(r);
     if (poly.empty()) return false;
-    const bool reached = holdsStrictlyInside(poly, m.opens(beta));
-    if (reached && reachedPart) {
-        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-        for (const Point& p : poly) {
-            const std::pair<double, double> c[3] = {CGAL::to_interval(p.x()), CGAL::to_interval(p.y()), CGAL::to_interval(p.z())};
-            for (int a = 0; a < 3; ++a) {
-                lo[a] = std::min(lo[a], c[a].first);
-                hi[a] = std::max(hi[a], c[a].second);
-            }
-        }
-        *reachedPart = {lo, hi};
-    }
+    const bool reached = holdsStrictlyInside<K>(poly, m.opens(beta));
+    if (reached && reachedPart) *reachedPart = boxOf(poly);
     return reached;
+}
+
+bool ExactFrustum::reachesExactly(const Triangle& r, double beta) const {
+    const Impl& m = *impl_;
+    if (m.degenerate) return true;
+    const std::vector<Point> poly = m.insideSides(r);
+    return !poly.empty() && holdsStrictlyInside<K>(poly, m.opens(beta));
 }
 
 bool ExactFrustum::reachesAboveGround(const Triangle& r, double beta, const std::vector<Triangle>& ground,
                                       double tolerance) const {
     const Impl& m = *impl_;
     if (m.degenerate) return true;
+    try {  // intervals first, as in reaches()
+        CGAL::Protect_FPU_rounding<true> upward;
+        const std::vector<IK::Point_3> poly = m.iInsideSides(r);
+        if (poly.empty()) return false;
+        return aboveGround<IK>(poly, m.iOpens(beta), ground, tolerance);
+    } catch (const CGAL::Uncertain_conversion_exception&) {
+    }
     const std::vector<Point> poly = m.insideSides(r);
     if (poly.empty()) return false;
-    const std::vector<HalfSpace> opens = m.opens(beta);
-    const Vector up(0, 1, 0);
-    for (const Triangle& g : ground) {
-        const Point a = toPoint(g[0]), b = toPoint(g[1]), c = toPoint(g[2]);
-        const Point v[3] = {a, b, c};
-        // The plane, its normal turned up; "not deeper than the tolerance under it":
-        // n . (x - a) + tolerance * n.y >= 0 (n.y > 0; closed: at the limit q receives).
-        Vector n = CGAL::cross_product(b - a, c - a);
-        if (CGAL::sign(n.y()) == CGAL::ZERO) return true;  // vertical or no area: stay safe
-        if (CGAL::sign(n.y()) == CGAL::NEGATIVE) n = -n;
-        std::vector<Point> part = poly;
-        // The vertical prism over the triangle: three closed half-spaces through its edges.
-        for (int e = 0; e < 3 && !part.empty(); ++e) {
-            const Point& p = v[e];
-            const Point& q = v[(e + 1) % 3];
-            Vector side = CGAL::cross_product(q - p, up);  // horizontal, across the edge
-            if (CGAL::sign(side * (v[(e + 2) % 3] - p)) == CGAL::NEGATIVE) side = -side;
-            clip(part, HalfSpace{side, p, FT(0)});
-        }
-        if (part.empty()) continue;
-        clip(part, HalfSpace{n, a, FT(tolerance) * n.y()});
-        if (!part.empty() && holdsStrictlyInside(part, opens)) return true;
-    }
-    return false;
+    return aboveGround<K>(poly, m.opens(beta), ground, tolerance);
 }
 
 FrustumFilter::FrustumFilter(const Triangle& t, const LightGeometry& light, double dilation) : caster_(t), light_(light) {

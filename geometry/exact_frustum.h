@@ -53,6 +53,9 @@ public:
     // true and `reachedPart` is given, it receives a box (rounded outward) holding every
     // point of the receiver inside the frustum's side half-spaces (for the terrain rule).
     bool reaches(const Triangle& receiver, double beta, std::array<glm::dvec3, 2>* reachedPart = nullptr) const;
+    // The same answer without the interval fast path (every step in the exact kernel): the
+    // reference the tests compare the fast path with.
+    bool reachesExactly(const Triangle& receiver, double beta) const;
     // The terrain rule, exactly (issue 19): true when some point of `receiver` lies in the
     // frustum (as reaches()) and is not deeper than `tolerance` (metres) under the ground,
     // that is, lies in the vertical prism of one of the `ground` triangles (window-local,

@@ -474,7 +474,8 @@ MeshSpec jaggedSheet(int n, double cell, double zig) {
 
 }  // namespace
 
-// The double filter may only reject what the exact test rejects: on random triangles, on
+// The double filter may only reject what the exact test rejects, and the exact test's
+// interval fast path answers as the exact kernel alone: on random triangles, on
 // the neighbours of a jagged sheet (shared edges and vertices, the cases the filter
 // decides by vertex identity), on the caster itself and on coplanar copies, for
 // directional and point lights, with and without bias and dilation.
@@ -516,6 +517,8 @@ TEST(FrustumFilter, NeverMissesWhatTheExactTestReaches) {
                     ++pairs;
                     const bool misses = filter.certainlyMisses(r, beta);
                     const bool reaches = exact.reaches(r, beta);
+                    // The interval fast path answers as the exact kernel does.
+                    ASSERT_EQ(reaches, exact.reachesExactly(r, beta)) << "trial " << trial << " beta " << beta;
                     filtered += misses;
                     reached += reaches;
                     ASSERT_FALSE(misses && reaches) << "trial " << trial << " beta " << beta;
