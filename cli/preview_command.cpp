@@ -59,21 +59,19 @@ int runPreview(const PreviewOptions& options, std::ostream& out, std::ostream& e
     ChunkCoord coord;
     if (int code = bakeChunkForLight(options.bake, options.chunk, options.light, options.outPath, err, bake, coord); code != kExitOk)
         return code;
-    const ChunkBake* cb = &bake;
-    const std::optional<ChunkCoord> c = coord;
-    const std::vector<Light>& lights = cb->window.lsLights;
+    const std::vector<Light>& lights = bake.window.lsLights;
     rq.light = options.light - 1;
     rq.shadowResolution = options.shadowResolution;
     rq.pcfRadius = options.pcfRadius;
     rq.timingRepeats = options.repeats;
-    Expected<gpu::PreviewReport> r = gpu::renderShadowPreview(cb->window, cb->verdicts, rq, options.outPath);
+    Expected<gpu::PreviewReport> r = gpu::renderShadowPreview(bake.window, bake.verdicts, rq, options.outPath);
     if (!r) {
         err << "shadowcull: error: " << r.error().what() << "\n";
         return exitCodeFor(r.error().kind);
     }
     const Light& L = lights[size_t(rq.light)];
     out << "wrote " << options.outPath << " (" << r->pictureWidth << " x " << r->pictureHeight << " px): light "
-        << options.light << " '" << L.name << "' over " << chunkFileName(*c) << ", masks from a bake of the chunk (not written)\n";
+        << options.light << " '" << L.name << "' over " << chunkFileName(coord) << ", masks from a bake of the chunk (not written)\n";
     out << "camera " << r->wsEye.x << "," << r->wsEye.y << "," << r->wsEye.z << " -> " << r->wsTarget.x << ","
         << r->wsTarget.y << "," << r->wsTarget.z << "\n";
     out << "shadow map " << options.shadowResolution << " x " << options.shadowResolution

@@ -46,19 +46,17 @@ int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err
     ChunkCoord coord;
     if (int code = bakeChunkForLight(options.bake, options.chunk, options.light, options.outPath, err, bake, coord); code != kExitOk)
         return code;
-    const ChunkBake* cb = &bake;
-    const std::optional<ChunkCoord> c = coord;
     gpu::RenderRequest rq;
     rq.light = options.light - 1;
     rq.resolution = options.bake.gpuResolution;
     rq.colouredBy = options.bake.gpuBaseline ? "the original GPU method's verdicts" : "analytic verdicts";
-    Expected<gpu::RenderReport> r = gpu::renderLightView(cb->window, cb->verdicts, rq, options.outPath);
+    Expected<gpu::RenderReport> r = gpu::renderLightView(bake.window, bake.verdicts, rq, options.outPath);
     if (!r) {
         err << "shadowcull: error: " << r.error().what() << "\n";
         return exitCodeFor(r.error().kind);
     }
     out << "wrote " << options.outPath << " (" << r->width << " x " << r->height << " px): light " << options.light
-        << " '" << cb->window.lsLights[size_t(rq.light)].name << "' over " << chunkFileName(*c) << ", groups "
+        << " '" << bake.window.lsLights[size_t(rq.light)].name << "' over " << chunkFileName(coord) << ", groups "
         << r->culled << " culled, " << r->kept << " kept, " << r->undecided << " undecided";
     if (r->outsideFrame) out << ", " << r->outsideFrame << " outside the frame";
     out << "\n";

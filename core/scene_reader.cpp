@@ -51,18 +51,20 @@ std::string RowTransform::singularReason() const {
     // axis, determinant 1e-13), which are valid and well conditioned.
     const double lengths = glm::length(rows[0]) * glm::length(rows[1]) * glm::length(rows[2]);
     const double det = determinant();
-    const std::string shape = "determinant " + formatNumber(det) + ", rows of lengths " +
-                              formatNumber(glm::length(rows[0])) + ", " + formatNumber(glm::length(rows[1])) + ", " +
-                              formatNumber(glm::length(rows[2]));
+    // Formatted only for a refusal: every placed model is checked.
+    auto shape = [&] {
+        return "determinant " + formatNumber(det) + ", rows of lengths " + formatNumber(glm::length(rows[0])) + ", " +
+               formatNumber(glm::length(rows[1])) + ", " + formatNumber(glm::length(rows[2]));
+    };
     if (!(std::isfinite(det) && lengths > 0.0 && std::abs(det) > 1e-9 * lengths))
-        return "singular transform (" + shape + ")";
+        return "singular transform (" + shape() + ")";
     // The inverse's entries are cofactors over det; compare without dividing (no overflow).
     const glm::dvec3 &a = rows[0], &b = rows[1], &c = rows[2];
     const glm::dvec3 cofactors[3] = {glm::cross(b, c), glm::cross(c, a), glm::cross(a, b)};
     double largest = 0.0;
     for (const glm::dvec3& k : cofactors) largest = std::max({largest, std::abs(k.x), std::abs(k.y), std::abs(k.z)});
     if (!(largest <= limits::kMaxInverseEntry * std::abs(det)))
-        return "transform too thin to place in float geometry (" + shape + "; its inverse has an entry of " +
+        return "transform too thin to place in float geometry (" + shape() + "; its inverse has an entry of " +
                formatNumber(largest / std::abs(det)) + ", above " + formatNumber(limits::kMaxInverseEntry) +
                ": an axis shorter than 1e-10 m per model unit)";
     return "";

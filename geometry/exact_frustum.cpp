@@ -382,17 +382,23 @@ std::array<glm::dvec3, 2> boxOf(const std::vector<PointT>& poly) {
 
 }  // namespace
 
-// The receiver clipped by the frustum's closed sides (empty: it misses them).
-std::vector<Point> ExactFrustum::Impl::insideSides(const Triangle& r) const {
-    for (const FastHalfSpace& f : fastSides)
+// The receiver clipped by the frustum's closed sides (empty: it misses them), over either
+// kernel; the double twins of the sides reject what lies clearly outside first.
+template <class Kn>
+std::vector<typename Kn::Point_3> clippedBySides(const std::vector<FastHalfSpace>& fast,
+                                                 const std::vector<HalfSpaceT<Kn>>& sides, const Triangle& r) {
+    for (const FastHalfSpace& f : fast)
         if (f.rejects(r)) return {};  // clearly outside one side: no exact work needed
-    std::vector<Point> poly = {toPoint(r[0]), toPoint(r[1]), toPoint(r[2])};
-    for (const HalfSpace& h : sides) {
+    using P = typename Kn::Point_3;
+    std::vector<P> poly = {P(r[0].x, r[0].y, r[0].z), P(r[1].x, r[1].y, r[1].z), P(r[2].x, r[2].y, r[2].z)};
+    for (const HalfSpaceT<Kn>& h : sides) {
         clip(poly, h);
         if (poly.empty()) break;
     }
     return poly;
 }
+
+std::vector<Point> ExactFrustum::Impl::insideSides(const Triangle& r) const { return clippedBySides<K>(fastSides, sides, r); }
 
 // The frustum's open half-spaces for bias `beta`: the near one, and a sheet's entry edges.
 std::vector<HalfSpace> ExactFrustum::Impl::opens(double beta) const {
@@ -412,15 +418,7 @@ void ExactFrustum::Impl::makeApprox() {
 }
 
 std::vector<IK::Point_3> ExactFrustum::Impl::iInsideSides(const Triangle& r) const {
-    for (const FastHalfSpace& f : fastSides)
-        if (f.rejects(r)) return {};
-    std::vector<IK::Point_3> poly = {IK::Point_3(r[0].x, r[0].y, r[0].z), IK::Point_3(r[1].x, r[1].y, r[1].z),
-                                     IK::Point_3(r[2].x, r[2].y, r[2].z)};
-    for (const IHalfSpace& h : iSides) {
-        clip(poly, h);
-        if (poly.empty()) break;
-    }
-    return poly;
+    return clippedBySides<IK>(fastSides, iSides, r);
 }
 
 std::vector<IHalfSpace> ExactFrustum::Impl::iOpens(double beta) const {
