@@ -3,7 +3,7 @@
 // left undecided and peak memory, then the issue-6 ratios (L vs M per chunk, pipeline rays/s
 // vs a bare Embree occlusion loop over the same scene, analytic vs GPU). See bench/README.md.
 //
-//   bake_bench [--sizes S,M,L,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N]
+//   bake_bench [--sizes S,M,L,XL,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N]
 //              [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]
 //              [--cross-check] [--no-gpu] [--gpu-baseline S,M,L|none] [--gpu-res N]
 //              [--gen-only] [--json FILE] [--gl auto,egl,osmesa]
@@ -62,6 +62,7 @@ constexpr double kTargetLinearity = 0.10;      // L per chunk within 10% of M pe
 constexpr double kTargetMemoryGiB = 4.0;       // peak memory of L
 constexpr double kTargetGpuSpeedup = 10.0;     // analytic bake vs GPU method at 2048, world M
 constexpr double kTargetDenseRatio = 2.0;      // issue 13: whole bake of D within 2x of D2k
+constexpr double kTargetWindowMemory = 1.5;    // issue 16: peak RSS of XL within 1.5x of M's
 constexpr uint64_t kDefaultBaselineCap = 4000000;  // rays per baseline loop unless --baseline-rays
 
 struct Options {
@@ -87,7 +88,7 @@ struct Options {
 [[noreturn]] void usage(const char* why) {
     std::fprintf(stderr,
                  "bake_bench: %s\n"
-                 "usage: bake_bench [--sizes S,M,L,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N]\n"
+                 "usage: bake_bench [--sizes S,M,L,XL,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N]\n"
                  "                  [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]\n"
                  "                  [--cross-check] [--no-gpu] [--gpu-baseline S,M,L|none] [--gpu-res N]\n"
                  "                  [--gen-only] [--json FILE] [--gl auto,egl,osmesa]\n",
@@ -114,7 +115,7 @@ Options parseArgs(int argc, char** argv) {
             std::stringstream ss(value());
             for (std::string s; std::getline(ss, s, ',');) {
                 WorldSpec spec;
-                if (!worldByName(s, spec)) usage(("unknown size " + s + " (S, M, L, D, D2k or R)").c_str());
+                if (!worldByName(s, spec)) usage(("unknown size " + s + " (S, M, L, XL, D, D2k or R)").c_str());
                 o.sizes.push_back(spec.name);
             }
         } else if (a == "--work") {
@@ -342,13 +343,9 @@ std::vector<std::pair<int, int>> gridChunks(const WorldSpec& spec) {
 // One byte per bit, chunks in order, objects in document order, groups x lights: 'k' kept
 // with a witness, 'c' culled (proved 0), 'u' undecided (written 1). Two bakes of the same
 // chunks compare bit by bit.
-std::string verdictCodes(const cli::BakeResult& r) {
-    std::string codes;
-    for (const ChunkVerdicts& cv : r.chunks)
-        for (const ObjectVerdicts& ov : cv.objects)
-            for (const Decision& d : ov.decisions)
-                codes += d.verdict == Verdict::Kept ? 'k' : d.verdict == Verdict::Culled ? 'c' : 'u';
-    return codes;
+void appendVerdictCodes(const ChunkVerdicts& cv, std::string& codes) {
+    for (const ObjectVerdicts& ov : cv.objects)
+        for (const Decision& d : ov.decisions) codes += d.verdict == Verdict::Kept ? 'k' : d.verdict == Verdict::Culled ? 'c' : 'u';
 }
 
 // Bakes the world (write = false) with the pipeline's options, or with the original GPU
@@ -371,12 +368,30 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     if (!o.glBackend.empty()) gpu::setGlChoice({*gpu::parseGlBackend(o.glBackend), gpu::glChoice().device});
     const std::vector<std::pair<int, int>> all = gridChunks(spec);
     if (o.maxChunks > 0 && size_t(o.maxChunks) < all.size()) {
-        // Evenly spread over the grid (every k-th chunk in row-major order).
+        // Evenly spread over the grid (every k-th chunk in row-major order), of the world
+        // read whole as a bake of all of it reads it (the scan of every chunk file).
         for (int n = 0; n < o.maxChunks; ++n) {
             const auto& c = all[size_t(uint64_t(n) * all.size() / uint64_t(o.maxChunks))];
-            opt.chunkNames.push_back(testing::chunkName(c.first, c.second));
+            opt.bakeOnly.push_back(*parseChunkArgument(testing::chunkName(c.first, c.second)));
         }
     }
+    // As the CLI bakes: verdicts counted chunk by chunk, not kept (memory follows the window).
+    opt.keepVerdicts = false;
+    std::string codes;
+    std::vector<std::map<std::string, uint64_t>> perLight;
+    opt.onChunkBaked = [&](const ChunkVerdicts& cv) {
+        appendVerdictCodes(cv, codes);
+        const size_t nl = size_t(cv.lightCount);
+        perLight.resize(nl);
+        for (const ObjectVerdicts& ov : cv.objects)
+            for (size_t k = 0; k < ov.decisions.size(); ++k) {
+                const Decision& d = ov.decisions[k];
+                auto& m = perLight[k % nl];
+                if (d.verdict == Verdict::Undecided) ++m["undecided"];
+                else if (d.verdict == Verdict::Kept) ++m["kept"];
+                else ++m["culled:" + std::string(d.stage)];
+            }
+    };
     long rssFirstChunk = 0, rssMidChunk = 0, rssLastChunk = 0;
     auto last = std::chrono::steady_clock::now();
     const auto t0 = last;
@@ -404,7 +419,8 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     }
     const double wall = since(t0);
     json j;
-    j["chunksBaked"] = r->chunks.size();
+    j["chunksBaked"] = r->totals.chunks;
+    j["peakLoadedChunks"] = r->peakLoadedChunks;
     j["chunksTotal"] = all.size();
     j["loadSeconds"] = r->loadSeconds;
     j["totalSeconds"] = r->totalSeconds;
@@ -438,16 +454,7 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     // Per light: witnesses, proofs by stage, undecided.
     json lights = json::array();
     const size_t nl = r->settings.lights.size();
-    std::vector<std::map<std::string, uint64_t>> perLight(nl);
-    for (const ChunkVerdicts& cv : r->chunks)
-        for (const ObjectVerdicts& ov : cv.objects)
-            for (size_t k = 0; k < ov.decisions.size(); ++k) {
-                const Decision& d = ov.decisions[k];
-                auto& m = perLight[k % nl];
-                if (d.verdict == Verdict::Undecided) ++m["undecided"];
-                else if (d.verdict == Verdict::Kept) ++m["kept"];
-                else ++m["culled:" + std::string(d.stage)];
-            }
+    perLight.resize(nl);
     for (size_t l = 0; l < nl; ++l)
         lights.push_back({{"name", r->settings.lights[l].name},
                           {"type", lightTypeName(r->settings.lights[l].type)},
@@ -460,9 +467,9 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     json first = json::array();
     for (size_t k = 0; k < std::min<size_t>(5, r->diagnostics.size()); ++k) first.push_back(r->diagnostics[k].what());
     j["firstWarnings"] = first;
-    std::ofstream codes(out.string() + ".bits", std::ios::binary);
-    codes << verdictCodes(*r);
-    return writeJson(out, j) && codes ? 0 : 1;
+    std::ofstream codesFile(out.string() + ".bits", std::ios::binary);
+    codesFile << codes;
+    return writeJson(out, j) && codesFile ? 0 : 1;
 }
 
 // ---------------------------------------------------------------------------------------
@@ -540,6 +547,13 @@ struct WorldRun {
     double meanPerChunk() const { return again.is_null() ? perChunk() : (perChunk() + againPerChunk()) / 2; }
     double meanCpuPerChunk() const { return again.is_null() ? cpuPerChunk() : (cpuPerChunk() + againCpuPerChunk()) / 2; }
     double projectedTotal() const { return perChunk() * bake["chunksTotal"].get<double>(); }
+    // Seconds per chunk of a bake of the whole world: the scan of every chunk file once per
+    // world chunk, the rest per chunk baked (a partial bake of XL scans all of it).
+    double wholeBakePerChunk() const {
+        const double load = bake["loadSeconds"].get<double>();
+        return (bake["totalSeconds"].get<double>() - load) / bake["chunksBaked"].get<double>() +
+               load / bake["chunksTotal"].get<double>();
+    }
     const json* stage(const std::string& name) const {
         for (const json& s : bake["stages"])
             if (s["name"] == name) return &s;
@@ -1037,6 +1051,36 @@ int main(int argc, char** argv) {
             }
             std::printf("| geometry stage >= 10x faster on D, >= 3x on R than before commit 82a0666, same verdicts | not measured "
                         "by this program (needs the old code): see docs/performance.md, issue 13 | not measured |\n");
+        }
+    }
+
+    // Issue 16: memory follows the window, so a world 100x the size of M needs about M's
+    // memory and the same time per chunk.
+    {
+        const WorldRun* XL = nullptr;
+        for (const WorldRun& w : runs)
+            if (w.spec.name == "XL" && w.baked) XL = &w;
+        if (XL) {
+            std::printf("\n## Targets (issue 16), measured side by side in this run\n\n| target | measured | status |\n|---|---|---|\n");
+            if (M) {
+                const double mem = double(XL->bakePeakKiB) / double(M->bakePeakKiB);
+                std::printf("| peak RSS of XL (%s chunks read whole, %s baked) within %.1fx of M's | %.2fx (XL %s, M %s; chunks held "
+                            "at once: XL %s, M %s) | %s |\n",
+                            count(XL->bake["chunksTotal"].get<uint64_t>()).c_str(), count(XL->bake["chunksBaked"].get<uint64_t>()).c_str(),
+                            kTargetWindowMemory, mem, mib(double(XL->bakePeakKiB)).c_str(), mib(double(M->bakePeakKiB)).c_str(),
+                            count(XL->bake.value("peakLoadedChunks", uint64_t(0))).c_str(),
+                            count(M->bake.value("peakLoadedChunks", uint64_t(0))).c_str(), mem <= kTargetWindowMemory ? "met" : "NOT met");
+                const double t = XL->wholeBakePerChunk() / M->wholeBakePerChunk();
+                const double cpu = XL->cpuPerChunk() / M->cpuPerChunk();
+                std::printf("| XL time per chunk within %.0f%% of M's | %.3f (XL %s s, M %s s per chunk; the scan of XL's %s chunk "
+                            "files %s s, counted per world chunk; CPU time per baked chunk XL / M %.3f) | %s |\n",
+                            kTargetLinearity * 100, t, seconds(XL->wholeBakePerChunk()).c_str(), seconds(M->wholeBakePerChunk()).c_str(),
+                            count(XL->bake["chunksTotal"].get<uint64_t>()).c_str(), seconds(XL->bake["loadSeconds"].get<double>()).c_str(),
+                            cpu, std::abs(t - 1) <= kTargetLinearity ? "met" : "NOT met");
+            } else {
+                std::printf("| peak RSS of XL within %.1fx of M's | n/a (needs M and XL in one run: --sizes M,XL) | not measured |\n",
+                            kTargetWindowMemory);
+            }
         }
     }
 

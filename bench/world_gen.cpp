@@ -761,6 +761,15 @@ WorldSpec worldL() {
     return s;
 }
 
+// Issue 16: generated like L, 100 x 100 chunks of 100 m (10 km x 10 km), for memory that
+// follows the window: baked in part (--max-chunks), read whole.
+WorldSpec worldXL() {
+    WorldSpec s = worldS();
+    s.name = "XL";
+    s.chunksX = s.chunksZ = 100;
+    return s;
+}
+
 // Issue 13: dense scanned meshes on 6 x 6 chunks of 64 m, 14 placements per chunk on
 // average (10-18), terrain at 17 x 17 samples; a sun and one point light.
 WorldSpec worldD() {
@@ -805,6 +814,7 @@ bool worldByName(const std::string& name, WorldSpec& out) {
     if (n == "S") out = worldS();
     else if (n == "M") out = worldM();
     else if (n == "L") out = worldL();
+    else if (n == "XL") out = worldXL();
     else if (n == "D") out = worldD();
     else if (n == "D2K") out = worldD2k();
     else if (n == "R") out = worldR();

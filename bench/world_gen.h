@@ -60,6 +60,7 @@ struct WorldSpec {
 WorldSpec worldS();  // 3 x 3 chunks, ~2.5k models
 WorldSpec worldM();  // 10 x 10 chunks, ~28k models
 WorldSpec worldL();  // 30 x 30 chunks, ~250k models
+WorldSpec worldXL();  // 100 x 100 chunks, ~2.8 M models (issue 16: memory follows the window)
 // Issue 13.
 WorldSpec worldD();    // 6 x 6 chunks of 64 m, dense meshes (51k-180k triangles), ~500 placements
 WorldSpec worldD2k();  // D with every mesh at 2,048 triangles (same placements)

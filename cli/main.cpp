@@ -79,10 +79,11 @@ private:
     std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), last_ = start_;
 };
 
-int runBakeCommand(const BakeOptions& opt, bool quiet) {
+int runBakeCommand(BakeOptions opt, bool quiet) {
     // Ctrl-C and SIGTERM stop the bake between steps, with its temporary files removed.
     installInterruptHandlers();
     ProgressBar bar(!quiet);
+    opt.keepVerdicts = false;  // counted and streamed: memory follows the window
     Expected<BakeResult> r = runBake(opt, [&](const BakeProgress& p) { bar(p); });
     if (!r) {
         // The message ends by saying which chunk files, if any, were updated.

@@ -16,6 +16,7 @@
 #include <memory>
 #include <set>
 #include <unordered_map>
+#include <unordered_set>
 #include <sstream>
 
 #include <tbb/global_control.h>
@@ -30,6 +31,7 @@
 #include "core/hash.h"
 #include "core/format.h"
 #include "core/results_file.h"
+#include "core/space_source.h"
 #include "core/window.h"
 #include "gpu/baseline.h"
 #include "gpu/confirm_stage.h"
@@ -167,6 +169,12 @@ StageRunner::StageRunner(const BakeOptions& opt)
     }
     densePass_ = useGpu && opt.useRaycast;
     witnessBaselineCulls_ = opt.gpuBaseline && opt.witnessBaselineCulls;
+}
+
+void StageRunner::forgetMeshes(const std::unordered_set<const Mesh*>& meshes) {
+    for (Stage* s : {static_cast<Stage*>(&reach_), static_cast<Stage*>(&inputOnly_), static_cast<Stage*>(&rays_),
+                     static_cast<Stage*>(&volumes_), static_cast<Stage*>(&confirm_), static_cast<Stage*>(&baseline_)})
+        s->forgetMeshes(meshes);
 }
 
 std::string StageRunner::glDescription() const {
@@ -325,6 +333,16 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
 
 namespace {
 
+// The chunks of the window around `c` that the space has.
+std::vector<ChunkCoord> windowChunks(const SpaceSource& source, ChunkCoord c) {
+    const Neighbours& n = source.settings().neighbours;
+    std::vector<ChunkCoord> out;
+    for (int dx = -n.left; dx <= n.right; ++dx)
+        for (int dz = -n.bottom; dz <= n.top; ++dz)
+            if (source.chunks().count({c.x + dx, c.z + dz})) out.push_back({c.x + dx, c.z + dz});
+    return out;
+}
+
 Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& progress, std::vector<std::string>& committed) {
     const auto t0 = std::chrono::steady_clock::now();
     auto since = [](auto t) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count(); };
@@ -340,44 +358,51 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         only.push_back(*c);
     }
 
-    // 2. Load everything before writing anything.
-    Expected<Space> loaded = loadSpace(opt.spaceDir, opt.resourceRoot, opt.chunkNames.empty() ? nullptr : &only);
-    if (!loaded) return loaded.error();
-    Space& space = *loaded;
+    // 2. Read everything before writing anything: the scan parses every chunk file and loads
+    // every resource once, and keeps what the whole bake needs to know (the warnings, the
+    // files read, the hashes). The chunks themselves are loaded again when a window needs
+    // them and dropped when no window will: memory follows the window.
+    Expected<SpaceSource> scanned = SpaceSource::scan(opt.spaceDir, opt.resourceRoot, opt.chunkNames.empty() ? nullptr : &only);
+    if (!scanned) return scanned.error();
+    SpaceSource& source = *scanned;
     BakeResult result;
-    result.settings = space.settings;
-    result.diagnostics = space.diagnostics;
+    result.settings = source.settings();
+    result.diagnostics = source.diagnostics();
+    result.totals = BakeTotals(result.settings.lights.size());
     std::vector<ChunkCoord> targets;
-    if (opt.chunkNames.empty()) {
-        for (const auto& [c, cf] : space.chunks) targets.push_back(c);
+    auto mustExist = [&](ChunkCoord c) -> Status {
+        if (source.chunks().count(c)) return Status::ok();
+        return makeError(ErrorKind::BadInput, (fs::path(opt.spaceDir) / chunkFileName(c)).string(), 0, "no such chunk file in the space");
+    };
+    if (opt.chunkNames.empty() && opt.bakeOnly.empty()) {
+        for (const auto& [c, e] : source.chunks()) targets.push_back(c);
     } else {
-        std::set<ChunkCoord> seen;
-        for (ChunkCoord c : only) {
-            if (!space.chunks.count(c))
-                return makeError(ErrorKind::BadInput, (fs::path(opt.spaceDir) / chunkFileName(c)).string(), 0,
-                                 "no such chunk file in the space");
-            if (seen.insert(c).second) targets.push_back(c);
+        for (ChunkCoord c : opt.chunkNames.empty() ? opt.bakeOnly : only) {
+            if (Status s = mustExist(c); !s) return s.error();
+            targets.push_back(c);
         }
+        // Grid order, once each: the order of the results file.
+        std::sort(targets.begin(), targets.end());
+        targets.erase(std::unique(targets.begin(), targets.end()), targets.end());
     }
-    std::unordered_map<const void*, uint64_t> meshHashes;
     const bool sharded = opt.shardCount > 0;
     if (sharded) {
-        // Every shard loads the same space and computes the same partition.
+        // Every shard scans the same space and computes the same partition.
         if (!opt.chunkNames.empty()) return makeError(ErrorKind::BadInput, "", 0, "--shard bakes a part of the whole space: not with --chunk");
-        targets = partitionChunks(space, opt.shardCount)[size_t(opt.shardIndex - 1)];
+        targets = partitionChunks(source, opt.shardCount)[size_t(opt.shardIndex - 1)];
         results::ShardRecord sh;
         sh.index = opt.shardIndex, sh.count = opt.shardCount;
-        sh.inputs = hexHash(spaceInputHash(space, opt, meshHashes));
-        sh.spaceChunks = space.chunks.size();
+        sh.inputs = hexHash(spaceInputHash(source, opt));
+        sh.spaceChunks = source.chunks().size();
         for (ChunkCoord c : targets) sh.assigned.push_back(chunkFileName(c));
-        sh.spaceWarnings = space.diagnostics.size();
+        sh.spaceWarnings = source.diagnostics().size();
         result.shard = std::move(sh);
     }
     result.loadSeconds = since(t0);
     if (Status i = interrupted(); !i) return i.error();
 
     // 3. Outputs: never an input, and every one writable before any work is done.
-    const std::vector<std::string> inputs = space.inputFiles();
+    const std::vector<std::string> inputs = source.inputFiles();
     const std::string outDir = opt.outDir.empty() ? opt.spaceDir : opt.outDir;
     if (opt.write && !opt.outDir.empty()) {
         // Before the results are probed: they may go into --out too.
@@ -414,22 +439,22 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     }
     // Where each chunk's bytes go: in place (through a symlink to its target), or a copy
     // under --out. A chunk file that may not be replaced is not baked at all.
-    auto targetOf = [&](const ChunkFile& cf) {
-        return writeTargetFor(opt.outDir.empty() ? cf.path : (fs::path(opt.outDir) / fs::path(cf.path).filename()).string());
+    auto targetOf = [&](const std::string& chunkPath) {
+        return writeTargetFor(opt.outDir.empty() ? chunkPath : (fs::path(opt.outDir) / fs::path(chunkPath).filename()).string());
     };
-    auto refuse = [&](const ChunkFile& cf, const std::string& why) { result.diagnostics.push_back({cf.path, 0, why}); };
+    auto refuse = [&](const std::string& chunkPath, const std::string& why) { result.diagnostics.push_back({chunkPath, 0, why}); };
     if (opt.write) {
         std::vector<ChunkCoord> writable;
         for (ChunkCoord c : targets) {
-            const ChunkFile& cf = space.chunks.at(c);
-            const std::string target = targetOf(cf);
+            const std::string& path = source.chunks().at(c).path;
+            const std::string target = targetOf(path);
             std::error_code ec;
-            const bool inPlace = fs::equivalent(target, cf.path, ec);
+            const bool inPlace = fs::equivalent(target, path, ec);
             if (!inPlace)
                 if (Status s = refuseInputAsOutput(target, inputs, "--out"); !s) return s.error();
             if (std::string why = opt.forceWrite ? "" : replaceRefusal(target); !why.empty()) {
-                refuse(cf, (inPlace ? "the chunk file is " : "the output " + target + " is ") + why +
-                               "; not baked (--force-write replaces it anyway)");
+                refuse(path, (inPlace ? "the chunk file is " : "the output " + target + " is ") + why +
+                                 "; not baked (--force-write replaces it anyway)");
                 continue;
             }
             // A symlinked chunk is staged beside its target, which may lie outside the
@@ -447,7 +472,26 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     if (!runner.status()) return runner.status().error();
 
     result.stages = runner.timings();
+    // The chunks loaded now (those the windows still to bake need), and when each can go:
+    // after the last target whose window holds it.
+    Space space;
+    space.settings = source.settings();
     TerrainMeshes terrainMeshes;
+    std::map<ChunkCoord, size_t> lastUse;
+    for (size_t k = 0; k < targets.size(); ++k)
+        for (ChunkCoord w : windowChunks(source, targets[k])) lastUse[w] = k;
+    auto release = [&](size_t k) {
+        std::vector<std::shared_ptr<const Mesh>> gone;
+        for (ChunkCoord w : windowChunks(source, targets[k]))
+            if (lastUse[w] == k && space.chunks.count(w)) {
+                std::vector<std::shared_ptr<const Mesh>> g = source.unload(w, space, terrainMeshes);
+                gone.insert(gone.end(), g.begin(), g.end());
+            }
+        if (gone.empty()) return;
+        std::unordered_set<const Mesh*> meshes;
+        for (const auto& m : gone) meshes.insert(m.get());
+        runner.forgetMeshes(meshes);  // before the addresses can be reused
+    };
     std::vector<StagedChunk> staged;
     auto discardStaged = [&] {
         for (const StagedChunk& s : staged) fs::remove(s.temp);
@@ -456,7 +500,25 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     ResumeState state;
     const std::string statePath = ResumeState::pathIn(outDir, opt.shardIndex, opt.shardCount);
     const bool wantResults = !opt.resultsPath.empty();
-    if (resume) state.load(statePath);
+    if (resume)
+        if (Status s = state.open(statePath); !s) return s.error();
+    // The results file, one chunk at a time as the chunks are done (staged beside it until
+    // the chunk files are committed): the same bytes as results::writeResults of the whole.
+    StagedFile resultsOut;
+    ResultsBuilder resultsBuilder(result.settings);
+    bool anyResults = false;
+    if (wantResults) {
+        Expected<StagedFile> f = StagedFile::open(opt.resultsPath);
+        if (!f) return f.error();
+        resultsOut = std::move(*f);
+        if (Status s = resultsOut.append(results::resultsHead()); !s) return s.error();
+    }
+    auto addResults = [&](results::ChunkRecord& record) -> Status {
+        resultsBuilder.add(record);
+        const Status s = resultsOut.append((anyResults ? ",\n" : "\n") + results::chunkJson(record));
+        anyResults = true;
+        return s;
+    };
     // Renames one staged chunk unless its source changed since it was read (the check and
     // the rename are microseconds apart; the lock keeps other bakes out of that window).
     auto commit = [&](const StagedChunk& s) -> Status {
@@ -471,51 +533,63 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         return Status::ok();
     };
     auto stopWith = [&](Error e) {
-        discardStaged();
-        if (resume) (void)state.save(statePath);  // what was committed stays recorded
+        discardStaged();  // (what --resume committed is recorded already)
         return e;
     };
-    auto lastSave = std::chrono::steady_clock::now();
-    std::chrono::steady_clock::duration lastSaveCost{};
     size_t done = 0;
     for (size_t k = 0; k < targets.size(); ++k) {
         if (Status i = interrupted(); !i) return stopWith(i.error());
-        const ChunkFile& cf = space.chunks.at(targets[k]);
-        const std::string target = targetOf(cf);
+        const ChunkEntry& entry = source.chunks().at(targets[k]);
+        const std::string target = targetOf(entry.path);
         const std::string chunkName = chunkFileName(targets[k]);
         uint64_t inputHash = 0;
         if (resume) {
-            inputHash = windowInputHash(space, targets[k], opt, meshHashes);
+            inputHash = windowInputHash(source, targets[k], opt);
             Expected<std::string> current = readRegularFile(target, "chunk file", ErrorKind::Io);
             // With --results, its part of the results as recorded; unreadable (an edited
             // state): bake it again.
             bool skip = current && state.upToDate(chunkName, inputHash, *current, wantResults);
             if (skip && wantResults) {
                 Expected<results::ChunkRecord> record = results::parseChunkJson(statePath, state.results(chunkName));
-                if (record) result.resumedRecords.push_back(std::move(*record));
                 skip = bool(record);
+                if (record) {
+                    if (opt.keepVerdicts) result.resumedRecords.push_back(*record);
+                    if (Status s = addResults(*record); !s) return stopWith(s.error());
+                }
             }
             if (skip) {
                 ++result.chunksResumed;
+                release(k);
                 if (progress) progress({++done, targets.size(), size_t(result.chunksResumed)});
                 continue;
             }
         }
-        BakeWindow window = buildWindow(space, targets[k], terrainMeshes);
-        ChunkVerdicts cv = makeChunkVerdicts(space, window);
-        if (Status status = runner.bake(window, cv, result.stages); !status) {
-            Error e = status.error();
-            if (e.file.empty() && e.kind != ErrorKind::Interrupted) e.file = cf.path;
-            return stopWith(e);
+        for (ChunkCoord w : windowChunks(source, targets[k]))
+            if (!space.chunks.count(w))
+                if (Status s = source.load(w, space, result.diagnostics); !s) return stopWith(s.error());
+        result.peakLoadedChunks = std::max(result.peakLoadedChunks, space.chunks.size());
+        const ChunkFile& cf = space.chunks.at(targets[k]);
+        ChunkVerdicts cv;
+        {
+            const BakeWindow window = buildWindow(space, targets[k], terrainMeshes);
+            cv = makeChunkVerdicts(space, window);
+            if (Status status = runner.bake(window, cv, result.stages); !status) {
+                Error e = status.error();
+                if (e.file.empty() && e.kind != ErrorKind::Interrupted) e.file = cf.path;
+                return stopWith(e);
+            }
+            cv.simulated = simulatedEffects(window, cv);
         }
-        cv.simulated = simulatedEffects(window, cv);
+        // The chunk's part of the results (kept by --resume for a later bake, too).
+        std::optional<results::ChunkRecord> record;
+        if (wantResults) record = chunkRecord(cv);
         if (opt.write) {
             const auto tw = std::chrono::steady_clock::now();
             // The text to rewrite is the text the objects were read from, or nothing.
             Expected<std::string> text = readRegularFile(cf.path, "chunk file", ErrorKind::Io);
             if (!text) return stopWith(text.error());
             if (Hasher().str(*text).value() != cf.contentHash) {
-                refuse(cf, kEditedDuringBake);
+                refuse(cf.path, kEditedDuringBake);
             } else {
                 Expected<std::string> rewritten = rewriteChunkShadows(*text, cf.path, shadowWrites(cv));
                 if (!rewritten) return stopWith(rewritten.error());
@@ -529,43 +603,40 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
                     const int before = result.chunksWritten;
                     if (Status s = commit(sc); !s) return stopWith(s.error());
                     if (result.chunksWritten > before)
-                        state.record(chunkName, inputHash, *rewritten, wantResults ? results::chunkJson(chunkRecord(cv)) : "");
-                    // Every 2 s, or less often when the state is large (with --results it
-                    // holds every chunk's results: 344 MB for world M), so that rewriting it
-                    // costs at most a tenth of the bake; a kill loses only unsaved records.
-                    if (std::chrono::steady_clock::now() - lastSave > std::max<std::chrono::steady_clock::duration>(std::chrono::seconds(2), 10 * lastSaveCost)) {
-                        const auto ts = std::chrono::steady_clock::now();
-                        if (Status s = state.save(statePath); !s) return stopWith(s.error());
-                        lastSave = std::chrono::steady_clock::now();
-                        lastSaveCost = lastSave - ts;
-                    }
+                        if (Status s = state.record(chunkName, inputHash, *rewritten, record ? results::chunkJson(*record) : ""); !s)
+                            return stopWith(s.error());
                 } else {
                     staged.push_back(std::move(sc));
                 }
             }
             result.writeSeconds += since(tw);
         }
-        result.chunks.push_back(std::move(cv));
+        result.totals.add(cv);
+        if (opt.onChunkBaked) opt.onChunkBaked(cv);
+        if (record)
+            if (Status s = addResults(*record); !s) return stopWith(s.error());
+        if (opt.keepVerdicts) result.chunks.push_back(std::move(cv));
+        release(k);
         if (progress) progress({++done, targets.size(), size_t(result.chunksResumed)});
     }
 
     if (Status i = interrupted(); !i) return stopWith(i.error());
 
-    // 5. The results file, staged before any chunk file is renamed: a results file that
-    // cannot be written stops the bake with every chunk file as it was.
-    std::string resultsTemp;
+    // 5. The results file, complete and synced before any chunk file is renamed: a results
+    // file that cannot be written stops the bake with every chunk file as it was.
     const size_t warningsInResults = result.diagnostics.size();
-    if (!opt.resultsPath.empty()) {
-        Expected<std::string> t = stageFile(opt.resultsPath, results::writeResults(resultsFile(result)));
-        if (!t) return stopWith(t.error());
-        resultsTemp = *t;
-    }
+    const uint64_t chunksEnd = resultsOut.size();
+    auto finishResults = [&]() -> Status {
+        if (!wantResults) return Status::ok();
+        if (Status s = resultsOut.truncate(chunksEnd); !s) return s;
+        if (Status s = resultsOut.append(results::resultsTail(resultsBuilder.tail(result.diagnostics, result.shard), anyResults)); !s)
+            return s;
+        return resultsOut.sync();
+    };
+    if (Status s = finishResults(); !s) return stopWith(s.error());
     // The last moment to stop with nothing written; the renames below take milliseconds
     // and are not interrupted, so that the chunk files end all old or all new.
-    if (Status i = interrupted(); !i) {
-        if (!resultsTemp.empty()) fs::remove(resultsTemp);
-        return stopWith(i.error());
-    }
+    if (Status i = interrupted(); !i) return stopWith(i.error());
 
     // 6. Commit: one rename per file. Each rename is atomic, so an interruption here leaves
     // every chunk file either as it was or complete.
@@ -573,23 +644,16 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     for (size_t k = 0; k < staged.size(); ++k) {
         if (Status s = commit(staged[k]); !s) {
             staged.erase(staged.begin(), staged.begin() + std::ptrdiff_t(k + 1));
-            if (!resultsTemp.empty()) fs::remove(resultsTemp);
             return stopWith(s.error());
         }
     }
     staged.clear();
-    if (resume)
-        if (Status s = state.save(statePath); !s) return stopWith(s.error());
-    if (!resultsTemp.empty()) {
+    if (wantResults) {
         // Refused chunks (edited during the commit) were added to the diagnostics after the
-        // results were staged: stage them again so the file lists every warning.
-        if (result.diagnostics.size() != warningsInResults) {
-            fs::remove(resultsTemp);
-            Expected<std::string> t = stageFile(opt.resultsPath, results::writeResults(resultsFile(result)));
-            if (!t) return stopWith(t.error());
-            resultsTemp = *t;
-        }
-        if (Status s = commitStagedFile(resultsTemp, opt.resultsPath); !s) return stopWith(s.error());
+        // results were finished: write the end again so the file lists every warning.
+        if (result.diagnostics.size() != warningsInResults)
+            if (Status s = finishResults(); !s) return stopWith(s.error());
+        if (Status s = resultsOut.commit(); !s) return stopWith(s.error());
     }
     result.writeSeconds += since(tc);
     if (opt.gpuBaseline) {

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/bake_totals.h"
 #include "core/results_file.h"
 #include "core/scene.h"
 #include "core/stage.h"
@@ -64,6 +65,16 @@ struct BakeOptions {
     // bake --shard K/N (cli/shard.h): bake only the K-th of N parts of the space (K from
     // 1), with its own lock, resume state and results. 0: the whole space.
     int shardIndex = 0, shardCount = 0;
+    // Keep every baked chunk's verdicts in BakeResult::chunks (tests, sweep, check). The CLI's
+    // bake keeps none: it counts them (BakeResult::totals) and streams the chunk files and
+    // the results, so that its memory follows the window and not the world.
+    bool keepVerdicts = true;
+    // Benchmarks: bake only these chunks (in grid order) of a space read whole, as a bake
+    // of every chunk reads it (--chunk reads only the named chunks and their neighbours).
+    std::vector<ChunkCoord> bakeOnly;
+    // Called with each baked chunk's verdicts before the bake lets them go (benchmarks
+    // count them without keeping them).
+    std::function<void(const ChunkVerdicts&)> onChunkBaked;
 };
 
 struct StageTiming {
@@ -74,16 +85,20 @@ struct StageTiming {
 struct BakeResult {
     SpaceSettings settings;
     std::vector<Diagnostic> diagnostics;
-    std::vector<ChunkVerdicts> chunks;  // in chunk order
+    std::vector<ChunkVerdicts> chunks;  // in grid order; only with BakeOptions::keepVerdicts
+    BakeTotals totals;                  // every chunk baked (not those --resume skipped)
     std::vector<StageTiming> stages;    // in pipeline order
     double loadSeconds = 0, writeSeconds = 0, totalSeconds = 0;
     int chunksWritten = 0;
     int chunksResumed = 0;  // skipped by --resume: unchanged since the last bake
     std::vector<std::string> notes;  // what the bake did differently from what was asked
     std::string gl;                  // the OpenGL context the GPU stages ran on, "" if none ran
-    // With --resume and --results: the chunks skipped as unchanged, as recorded when they
-    // were baked (their part of the results file).
+    // With --resume, --results and keepVerdicts: the chunks skipped as unchanged, as recorded
+    // when they were baked (their part of the results file).
     std::vector<results::ChunkRecord> resumedRecords;
+    // The most chunks held in memory at once (memory follows the window: a bake of a grid
+    // W chunks deep holds about 2W + 3 of them, whatever its size).
+    size_t peakLoadedChunks = 0;
     std::optional<results::ShardRecord> shard;  // bake --shard: this shard's part
 };
 
@@ -99,6 +114,8 @@ public:
     std::vector<StageTiming> timings() const;
     // Runs every stage on one window; adds each stage's stats to `timings`.
     Status bake(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<StageTiming>& timings);
+    // Every stage forgets these meshes (about to be freed: Stage::forgetMeshes).
+    void forgetMeshes(const std::unordered_set<const Mesh*>& meshes);
     // With witnessBaselineCulls: bits the baseline culled for which a witness ray was
     // found so far (false culls; the verdicts written are the baseline's all the same).
     uint64_t baselineCullsWitnessed() const { return baselineCullsWitnessed_; }

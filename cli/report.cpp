@@ -8,22 +8,7 @@
 
 namespace shadowcull::cli {
 
-BitCounts countBits(const BakeResult& r) {
-    BitCounts c;
-    for (const ChunkVerdicts& cv : r.chunks)
-        for (const ObjectVerdicts& ov : cv.objects) {
-            c.groups += uint64_t(ov.groupCount);
-            for (const Decision& d : ov.decisions) {
-                ++c.bits;
-                switch (d.verdict) {
-                    case Verdict::Culled: ++c.culled; ++c.culledBy[std::string(d.stage)]; break;
-                    case Verdict::Kept: ++c.kept; ++c.provedKept; ++c.keptBy[std::string(d.stage)]; break;
-                    case Verdict::Undecided: ++c.kept; ++c.undecided; break;
-                }
-            }
-        }
-    return c;
-}
+BitCounts countBits(const BakeResult& r) { return r.totals.bits; }
 
 savings::Tally tallyBake(const BakeResult& r) {
     savings::Tally t(r.settings.lights.size());
@@ -55,30 +40,23 @@ std::string pct(uint64_t a, uint64_t b) { return b ? fmt("%.1f%%", 100.0 * doubl
 
 }  // namespace
 
-std::string formatSimulated(const std::vector<ChunkVerdicts>& chunks) {
-    // Each effect once, in the order first met, with the chunks that simulated it.
-    std::vector<std::pair<std::string, size_t>> effects;
-    for (const ChunkVerdicts& cv : chunks)
-        for (const std::string& e : cv.simulated) {
-            auto it = std::find_if(effects.begin(), effects.end(), [&](const auto& p) { return p.first == e; });
-            if (it == effects.end()) effects.emplace_back(e, 1);
-            else ++it->second;
-        }
+std::string formatSimulated(const BakeTotals& totals) {
     // Effects of the whole window first, then each light's, in light order.
+    std::vector<std::pair<std::string, size_t>> effects = totals.simulated;
     auto lightOf = [](const std::string& e) { return e.rfind("light ", 0) == 0 ? std::atoi(e.c_str() + 6) : 0; };
     std::stable_sort(effects.begin(), effects.end(), [&](const auto& a, const auto& b) { return lightOf(a.first) < lightOf(b.first); });
-    if (chunks.empty()) return {};
+    if (!totals.chunks) return {};
     if (effects.empty()) return "simulated: nothing beyond the plain definition (no alpha test, terrain, bias or local light)\n";
     std::string s = "simulated:\n";
     for (const auto& [effect, n] : effects)
-        s += "  " + effect + (n == chunks.size() ? "" : " (" + std::to_string(n) + " of " + std::to_string(chunks.size()) + " chunks)") + "\n";
+        s += "  " + effect + (n == totals.chunks ? "" : " (" + std::to_string(n) + " of " + std::to_string(totals.chunks) + " chunks)") + "\n";
     return s;
 }
 
 std::string formatSummary(const BakeResult& r, bool wrote) {
     const BitCounts c = countBits(r);
     std::string s;
-    s += "chunks " + std::to_string(r.chunks.size());
+    s += "chunks " + std::to_string(r.totals.chunks);
     if (wrote) s += " (" + std::to_string(r.chunksWritten) + " written)";
     if (r.chunksResumed) s += ", " + std::to_string(r.chunksResumed) + " unchanged since the last bake (skipped)";
     s += ", groups " + std::to_string(c.groups) + ", lights " + std::to_string(r.settings.lights.size()) + "\n";
@@ -97,8 +75,8 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
     s += "\n  undecided, kept as 1      " + std::to_string(c.undecided) + "\n";
     std::vector<std::string> lightNames;
     for (const Light& L : r.settings.lights) lightNames.push_back(L.name);
-    s += formatSavingsTable(tallyBake(r).world(), lightNames);
-    s += formatSimulated(r.chunks);
+    s += formatSavingsTable(r.totals.savings.world(), lightNames);
+    s += formatSimulated(r.totals);
     s += "time: load " + fmt("%.2f s", r.loadSeconds);
     for (const StageTiming& st : r.stages) {
         s += ", " + st.name + " " + fmt("%.2f s", st.stats.seconds);
@@ -153,51 +131,50 @@ results::ChunkRecord chunkRecord(const ChunkVerdicts& cv) {
     return c;
 }
 
-results::ResultsFile resultsFile(const BakeResult& r) {
-    results::ResultsFile f;
-    f.space = r.settings.spaceDir;
-    for (size_t l = 0; l < r.settings.lights.size(); ++l) {
-        const Light& L = r.settings.lights[l];
-        results::LightRecord& r = f.lights.emplace_back();
+ResultsBuilder::ResultsBuilder(const SpaceSettings& settings) : tally_(settings.lights.size()) {
+    file_.space = settings.spaceDir;
+    for (size_t l = 0; l < settings.lights.size(); ++l) {
+        const Light& L = settings.lights[l];
+        results::LightRecord& r = file_.lights.emplace_back();
         r.index = int(l) + 1, r.bit = int(l), r.name = L.name, r.type = lightTypeName(L.type);
         if (L.type != LightType::Directional) r.position = L.position, r.range = L.range;
         if (L.type != LightType::Point) r.direction = L.direction;
         if (L.type == LightType::Spot) r.coneAngle = L.coneHalfAngleDeg;
         r.bias = L.bias, r.slopeBias = L.slopeBias, r.filterRadius = L.filterRadius;
     }
-    for (const ChunkVerdicts& cv : r.chunks) f.chunks.push_back(chunkRecord(cv));
-    // The counts the summary line prints (countBits), not recounted from the records.
-    const BitCounts n = countBits(r);
-    f.summary.chunks = r.chunks.size();
-    f.summary.groups = n.groups;
-    f.summary.bits = n.bits;
-    f.summary.kept = n.kept;
-    f.summary.culled = n.culled;
-    f.summary.provedKept = n.provedKept;
-    f.summary.undecided = n.undecided;
-    f.summary.culledBy = n.culledBy;
-    if (!r.resumedRecords.empty()) {
-        // Chunks --resume skipped, as recorded when they were baked: the file lists every
-        // chunk of the bake, in grid order, as a bake of all of them would.
-        const results::Summary more = results::summarize(r.resumedRecords);
-        f.summary.chunks += more.chunks, f.summary.groups += more.groups, f.summary.bits += more.bits;
-        f.summary.kept += more.kept, f.summary.culled += more.culled;
-        f.summary.provedKept += more.provedKept, f.summary.undecided += more.undecided;
-        for (const auto& [stage, k] : more.culledBy) f.summary.culledBy[stage] += k;
-        f.chunks.insert(f.chunks.end(), r.resumedRecords.begin(), r.resumedRecords.end());
-        std::stable_sort(f.chunks.begin(), f.chunks.end(), [](const results::ChunkRecord& a, const results::ChunkRecord& b) {
-            return parseChunkName(a.chunk).value_or(ChunkCoord{}) < parseChunkName(b.chunk).value_or(ChunkCoord{});
-        });
-    }
+}
+
+void ResultsBuilder::add(results::ChunkRecord& chunk) {
     // What the masks remove, per chunk and for the world: tallied from the records (the
     // resumed chunks' too), as `merge` and `report` tally a file.
-    const savings::Tally t = savings::tallyResults(f);
-    f.summary.savings = t.world();
-    for (size_t k = 0; k < f.chunks.size() && k < t.chunks().size(); ++k) f.chunks[k].savings = t.chunks()[k];
-    for (const Diagnostic& d : r.diagnostics) f.warnings.push_back(d.what());
-    f.shard = r.shard;
+    tally_.addChunk(chunk);
+    chunk.savings = tally_.takeLastChunk();
+    file_.summary.count(chunk);
+}
+
+results::ResultsFile ResultsBuilder::tail(const std::vector<Diagnostic>& diagnostics,
+                                          const std::optional<results::ShardRecord>& shard) const {
+    results::ResultsFile f = file_;
+    f.summary.savings = tally_.world();
+    for (const Diagnostic& d : diagnostics) f.warnings.push_back(d.what());
+    f.shard = shard;
     return f;
 }
 
+results::ResultsFile resultsFile(const BakeResult& r) {
+    // The baked chunks and those --resume skipped (as recorded when they were baked), in
+    // grid order, as a bake of all of them lists them.
+    std::vector<results::ChunkRecord> chunks;
+    for (const ChunkVerdicts& cv : r.chunks) chunks.push_back(chunkRecord(cv));
+    chunks.insert(chunks.end(), r.resumedRecords.begin(), r.resumedRecords.end());
+    std::stable_sort(chunks.begin(), chunks.end(), [](const results::ChunkRecord& a, const results::ChunkRecord& b) {
+        return parseChunkName(a.chunk).value_or(ChunkCoord{}) < parseChunkName(b.chunk).value_or(ChunkCoord{});
+    });
+    ResultsBuilder builder(r.settings);
+    for (results::ChunkRecord& c : chunks) builder.add(c);
+    results::ResultsFile f = builder.tail(r.diagnostics, r.shard);
+    f.chunks = std::move(chunks);
+    return f;
+}
 
 }  // namespace shadowcull::cli

@@ -1,7 +1,10 @@
 #include "cli/resume.h"
 
-#include "core/file_read.h"
+#include <fcntl.h>
+#include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -20,28 +23,7 @@ namespace shadowcull::cli {
 namespace {
 
 // Bumped whenever a change to the tool may change verdicts for the same input.
-constexpr const char* kBakeLogicVersion = "shadowcull-bake-2";
-
-uint64_t meshHash(const Mesh& m) {
-    Hasher h;
-    h.pod(uint64_t(m.positions.size()));
-    for (const glm::dvec3& p : m.positions) h.vec(p);
-    h.pod(uint64_t(m.triangles.size()));
-    for (size_t t = 0; t < m.triangles.size(); ++t) h.pod(m.triangles[t]).pod(m.triangleGroup[t]);
-    for (const PrimitiveGroup& g : m.groups) h.pod(g.alphaTested).pod(g.doubleSided);
-    return h.value();
-}
-
-uint64_t heightfieldHash(const Heightfield& hf) {
-    Hasher h;
-    h.pod(hf.n).pod(hf.size);
-    h.bytes(hf.heights.data(), hf.heights.size() * sizeof(double));
-    return h.value();
-}
-
-}  // namespace
-
-namespace {
+constexpr const char* kBakeLogicVersion = "shadowcull-bake-3";
 
 // The settings, lights and the bake options that change verdicts.
 void hashSettings(Hasher& h, const SpaceSettings& S, const BakeOptions& opt) {
@@ -55,48 +37,30 @@ void hashSettings(Hasher& h, const SpaceSettings& S, const BakeOptions& opt) {
     }
 }
 
-// One chunk's objects: placement, flags, and the content of each mesh or heightfield.
-void hashChunk(Hasher& h, const ChunkFile& cf, std::unordered_map<const void*, uint64_t>& cache) {
-    h.pod(uint8_t(1)).pod(cf.coord);
-    for (const ChunkObject& o : cf.objects) {
-        h.pod(o.kind).pod(o.elementIndex).str(o.resource).str(o.uuid).pod(o.castsShadow).pod(o.skipped);
-        for (const glm::dvec3& r : o.transform.rows) h.vec(r);
-        const void* key = o.mesh ? static_cast<const void*>(o.mesh.get()) : static_cast<const void*>(o.heightfield.get());
-        if (!key) continue;
-        auto found = cache.find(key);
-        if (found == cache.end()) found = cache.emplace(key, o.mesh ? meshHash(*o.mesh) : heightfieldHash(*o.heightfield)).first;
-        h.pod(found->second);
-    }
-}
-
 }  // namespace
 
-uint64_t windowInputHash(const Space& space, ChunkCoord centre, const BakeOptions& opt,
-                         std::unordered_map<const void*, uint64_t>& cache) {
-    const SpaceSettings& S = space.settings;
+uint64_t windowInputHash(const SpaceSource& space, ChunkCoord centre, const BakeOptions& opt) {
+    const SpaceSettings& S = space.settings();
     Hasher h;
     hashSettings(h, S, opt);
     h.pod(centre);
     for (int dx = -S.neighbours.left; dx <= S.neighbours.right; ++dx)
         for (int dz = -S.neighbours.bottom; dz <= S.neighbours.top; ++dz) {
-            auto it = space.chunks.find({centre.x + dx, centre.z + dz});
-            if (it == space.chunks.end()) {
-                h.pod(uint8_t(0));
-                continue;
-            }
-            hashChunk(h, it->second, cache);
+            auto it = space.chunks().find({centre.x + dx, centre.z + dz});
+            if (it == space.chunks().end()) h.pod(uint8_t(0));
+            else h.pod(uint8_t(1)).pod(it->second.objectsHash);
         }
     return h.value();
 }
 
-uint64_t spaceInputHash(const Space& space, const BakeOptions& opt, std::unordered_map<const void*, uint64_t>& cache) {
+uint64_t spaceInputHash(const SpaceSource& space, const BakeOptions& opt) {
     Hasher h;
-    hashSettings(h, space.settings, opt);
-    h.str(space.settings.spaceDir);  // the results name it
-    h.pod(uint64_t(space.chunks.size()));
-    for (const auto& [coord, cf] : space.chunks) {
-        hashChunk(h, cf, cache);
-        h.pod(cf.contentHash);  // the text each shard rewrites
+    hashSettings(h, space.settings(), opt);
+    h.str(space.settings().spaceDir);  // the results name it
+    h.pod(uint64_t(space.chunks().size()));
+    for (const auto& [coord, e] : space.chunks()) {
+        h.pod(uint8_t(1)).pod(e.objectsHash);
+        h.pod(e.contentHash);  // the text each shard rewrites
     }
     return h.value();
 }
@@ -110,50 +74,149 @@ std::string ResumeState::pathIn(const std::string& dir, int shardIndex, int shar
     return (fs::path(dir) / nameFor(shardIndex, shardCount)).string();
 }
 
-void ResumeState::load(const std::string& path) {
-    entries_.clear();
-    Expected<std::string> text = readRegularFile(path, "bake state");  // never a FIFO to wait on
-    if (!text) return;
+namespace {
+
+constexpr const char* kStateHeader = "{\"format\":\"shadowcull-bake-state\",\"version\":2}";
+
+// The lines of a journal with their offsets: header first; stops at the first line that
+// is not a whole record (a torn append).
+struct JournalLine {
+    std::string chunk;
+    uint64_t input = 0, output = 0;
+    bool hasResults = false;
+    uint64_t offset = 0, length = 0;
+};
+
+bool parseLine(const std::string& line, JournalLine& out) {
     try {
-        nlohmann::json j = nlohmann::json::parse(*text);
-        for (const auto& [chunk, e] : j.at("chunks").items())
-            entries_[chunk] = Entry{std::stoull(e.at("input").get<std::string>(), nullptr, 16),
-                                    std::stoull(e.at("output").get<std::string>(), nullptr, 16),
-                                    e.contains("results") ? e["results"].get<std::string>() : std::string()};
+        const nlohmann::json j = nlohmann::json::parse(line);
+        out.chunk = j.at("chunk").get<std::string>();
+        out.input = std::stoull(j.at("input").get<std::string>(), nullptr, 16);
+        out.output = std::stoull(j.at("output").get<std::string>(), nullptr, 16);
+        out.hasResults = j.contains("results") && !j["results"].get<std::string>().empty();
+        return true;
     } catch (const std::exception&) {
-        entries_.clear();  // unreadable: bake everything again
+        return false;
     }
+}
+
+Status writeAll(int fd, const std::string& bytes, const std::string& path) {
+    for (size_t done = 0; done < bytes.size();) {
+        const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) return makeError(ErrorKind::Io, path, 0, std::string("cannot append to the bake state: ") + std::strerror(errno));
+        done += size_t(n);
+    }
+    return Status::ok();
+}
+
+std::string readAt(const std::string& path, uint64_t offset, uint64_t length) {
+    std::ifstream in(path, std::ios::binary);
+    std::string s(length, '\0');
+    in.seekg(std::streamoff(offset));
+    in.read(s.data(), std::streamsize(length));
+    return in ? s : std::string();
+}
+
+}  // namespace
+
+ResumeState::~ResumeState() {
+    if (fd_ >= 0) ::close(fd_);
+}
+
+Status ResumeState::open(const std::string& path) {
+    entries_.clear();
+    path_ = path;
+    // Never a FIFO or device to wait on: only a regular file is read.
+    std::error_code ec;
+    const bool regular = fs::is_regular_file(fs::symlink_status(path, ec));
+    std::vector<JournalLine> lines;
+    bool clean = regular;  // the file is exactly a header and the latest record per chunk
+    if (regular) {
+        std::ifstream in(path, std::ios::binary);
+        std::string line;
+        uint64_t offset = 0;
+        bool header = true;
+        while (std::getline(in, line)) {
+            const uint64_t length = line.size() + 1;
+            if (in.eof()) {  // no newline: torn
+                clean = false;
+                break;
+            }
+            if (header) {
+                header = false;
+                if (line != kStateHeader) {
+                    clean = false;
+                    break;
+                }
+            } else {
+                JournalLine l;
+                if (!parseLine(line, l)) {
+                    clean = false;
+                    break;
+                }
+                l.offset = offset, l.length = length;
+                lines.push_back(std::move(l));
+            }
+            offset += length;
+        }
+        if (header) clean = false;  // empty
+    }
+    std::map<std::string, size_t> latest;
+    for (size_t k = 0; k < lines.size(); ++k) latest[lines[k].chunk] = k;
+    if (latest.size() != lines.size()) clean = false;
+    if (clean) {
+        for (const auto& [chunk, k] : latest)
+            entries_[chunk] = Entry{lines[k].input, lines[k].output, lines[k].hasResults, lines[k].offset, lines[k].length};
+        size_ = fs::file_size(path, ec);
+    } else {
+        // Rewritten with the latest record per chunk, line by line (never all in memory).
+        Expected<StagedFile> out = StagedFile::open(path);
+        if (!out) return out.error();
+        if (Status s = out->append(std::string(kStateHeader) + "\n"); !s) return s;
+        for (const auto& [chunk, k] : latest) {
+            const JournalLine& l = lines[k];
+            const std::string text = readAt(path, l.offset, l.length);
+            if (text.size() != l.length) continue;  // changed under us: bake it again
+            entries_[chunk] = Entry{l.input, l.output, l.hasResults, out->size(), l.length};
+            if (Status s = out->append(text); !s) return s;
+        }
+        size_ = out->size();
+        if (Status s = out->sync(); !s) return s;
+        if (Status s = out->commit(); !s) return s;
+    }
+    fd_ = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (fd_ < 0) return makeError(ErrorKind::Io, path, 0, std::string("cannot open the bake state: ") + std::strerror(errno));
+    return Status::ok();
 }
 
 bool ResumeState::upToDate(const std::string& chunk, uint64_t inputHash, const std::string& currentBytes,
                            bool needResults) const {
     auto it = entries_.find(chunk);
     return it != entries_.end() && it->second.input == inputHash &&
-           it->second.output == Hasher().str(currentBytes).value() && (!needResults || !it->second.results.empty());
+           it->second.output == Hasher().str(currentBytes).value() && (!needResults || it->second.hasResults);
 }
 
-const std::string& ResumeState::results(const std::string& chunk) const {
-    static const std::string none;
+std::string ResumeState::results(const std::string& chunk) const {
     auto it = entries_.find(chunk);
-    return it == entries_.end() ? none : it->second.results;
-}
-
-void ResumeState::record(const std::string& chunk, uint64_t inputHash, const std::string& writtenBytes,
-                         std::string resultsJson) {
-    entries_[chunk] = Entry{inputHash, Hasher().str(writtenBytes).value(), std::move(resultsJson)};
-}
-
-Status ResumeState::save(const std::string& path) const {
-    nlohmann::json j;
-    j["format"] = "shadowcull-bake-state";
-    j["version"] = 1;
-    nlohmann::json chunks = nlohmann::json::object();
-    for (const auto& [chunk, e] : entries_) {
-        chunks[chunk] = {{"input", hexHash(e.input)}, {"output", hexHash(e.output)}};
-        if (!e.results.empty()) chunks[chunk]["results"] = e.results;
+    if (it == entries_.end() || !it->second.hasResults) return {};
+    try {
+        return nlohmann::json::parse(readAt(path_, it->second.offset, it->second.length)).at("results").get<std::string>();
+    } catch (const std::exception&) {
+        return {};  // unreadable now: the chunk is baked again
     }
-    j["chunks"] = chunks;
-    return writeFileAtomic(path, j.dump(1) + "\n");
+}
+
+Status ResumeState::record(const std::string& chunk, uint64_t inputHash, const std::string& writtenBytes,
+                           const std::string& resultsJson) {
+    nlohmann::json j = {{"chunk", chunk}, {"input", hexHash(inputHash)}, {"output", hexHash(Hasher().str(writtenBytes).value())}};
+    if (!resultsJson.empty()) j["results"] = resultsJson;
+    const std::string line = j.dump() + "\n";
+    if (Status s = writeAll(fd_, line, path_); !s) return s;
+    if (::fsync(fd_) != 0) return makeError(ErrorKind::Io, path_, 0, std::string("cannot sync the bake state: ") + std::strerror(errno));
+    entries_[chunk] = Entry{inputHash, Hasher().str(writtenBytes).value(), !resultsJson.empty(), size_, line.size()};
+    size_ += line.size();
+    return Status::ok();
 }
 
 }  // namespace shadowcull::cli

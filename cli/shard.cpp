@@ -23,23 +23,21 @@ std::optional<ShardSpec> parseShard(const std::string& text) {
     return ShardSpec{*k, *n};
 }
 
-double chunkWork(const Space& space, ChunkCoord c) {
-    const ChunkFile& cf = space.chunks.at(c);
-    size_t objects = 0;
-    for (const ChunkObject& o : cf.objects) objects += o.skipped ? 0 : 1;
+double chunkWork(const SpaceSource& space, ChunkCoord c) {
+    const size_t objects = space.chunks().at(c).usableObjects;
     // The chunk's column, any height: a light reaches it unless it surely cannot.
-    const double size = space.settings.chunkSize;
+    const double size = space.settings().chunkSize;
     Aabb column;
     column.min = glm::dvec3(double(c.x) * size, -1e9, double(c.z) * size);
     column.max = glm::dvec3(double(c.x + 1) * size, 1e9, double(c.z + 1) * size);
     size_t lights = 0;
-    for (const Light& L : space.settings.lights) lights += boxBeyondRange(L, column) ? 0 : 1;
+    for (const Light& L : space.settings().lights) lights += boxBeyondRange(L, column) ? 0 : 1;
     return double(objects) * double(lights) + 1.0;
 }
 
-std::vector<std::vector<ChunkCoord>> partitionChunks(const Space& space, int count) {
+std::vector<std::vector<ChunkCoord>> partitionChunks(const SpaceSource& space, int count) {
     std::vector<std::pair<double, ChunkCoord>> work;
-    for (const auto& [coord, cf] : space.chunks) work.emplace_back(chunkWork(space, coord), coord);
+    for (const auto& [coord, e] : space.chunks()) work.emplace_back(chunkWork(space, coord), coord);
     // Largest first (longest-processing-time rule); stable, so equal work stays in grid order.
     std::stable_sort(work.begin(), work.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
     std::vector<std::vector<ChunkCoord>> shards(size_t(std::max(count, 1)));

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/scene.h"
+#include "core/space_source.h"
 
 namespace shadowcull::cli {
 
@@ -24,11 +25,11 @@ std::optional<ShardSpec> parseShard(const std::string& text);
 // skipped) times the lights that may reach its column (conservative reach: a point or
 // spot light counts unless its range sphere or cone surely misses the column), plus one
 // so that an empty chunk still costs its read and write. Unitless; only ratios matter.
-double chunkWork(const Space& space, ChunkCoord c);
+double chunkWork(const SpaceSource& space, ChunkCoord c);
 
 // The chunks of each of `count` shards, each in grid order: greedy by decreasing work
 // (ties in grid order), each chunk to the shard with the least work so far (ties: the
 // lowest index). Depends only on the space, so every shard computes the same partition.
-std::vector<std::vector<ChunkCoord>> partitionChunks(const Space& space, int count);
+std::vector<std::vector<ChunkCoord>> partitionChunks(const SpaceSource& space, int count);
 
 }  // namespace shadowcull::cli

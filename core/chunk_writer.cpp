@@ -379,35 +379,101 @@ std::string replaceRefusal(const std::string& path) {
     return {};
 }
 
-Expected<std::string> stageFile(const std::string& path, const std::string& contents, bool keepOwner) {
-    const std::string temp = tempPathFor(path);
+StagedFile& StagedFile::operator=(StagedFile&& o) noexcept {
+    if (this != &o) {
+        discard();
+        path_ = std::move(o.path_), temp_ = std::move(o.temp_);
+        fd_ = o.fd_, size_ = o.size_;
+        o.fd_ = -1;
+    }
+    return *this;
+}
+
+Expected<StagedFile> StagedFile::open(const std::string& path, bool keepOwner) {
+    StagedFile f;
+    f.path_ = path;
+    f.temp_ = tempPathFor(path);
     // Keep the permissions users gave the file; a new file gets the umask's default.
     struct stat st {};
     bool existed = ::stat(path.c_str(), &st) == 0;
-
-    int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-    if (fd < 0) return ioError(path, "cannot create temporary file " + temp).error();
+    f.fd_ = ::open(f.temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (f.fd_ < 0) return ioError(path, "cannot create temporary file " + f.temp_).error();
     auto fail = [&](const std::string& what) {
         Status s = ioError(path, what);  // before close/unlink can change errno
-        if (fd >= 0) ::close(fd);
-        ::unlink(temp.c_str());
+        f.discard();
         return s.error();
     };
-    if (existed && (st.st_uid != ::geteuid() || st.st_gid != ::getegid()) && ::fchown(fd, st.st_uid, st.st_gid) != 0 &&
+    if (existed && (st.st_uid != ::geteuid() || st.st_gid != ::getegid()) && ::fchown(f.fd_, st.st_uid, st.st_gid) != 0 &&
         keepOwner)
-        return fail("cannot keep the owner and group of the file on " + temp);
+        return fail("cannot keep the owner and group of the file on " + f.temp_);
     // After fchown, which may clear set-id bits.
-    if (existed && ::fchmod(fd, st.st_mode & 07777) != 0) return fail("cannot set permissions of " + temp);
-    for (size_t done = 0; done < contents.size();) {
-        ssize_t n = ::write(fd, contents.data() + done, contents.size() - done);
+    if (existed && ::fchmod(f.fd_, st.st_mode & 07777) != 0) return fail("cannot set permissions of " + f.temp_);
+    return f;
+}
+
+Status StagedFile::append(const std::string& bytes) {
+    for (size_t done = 0; done < bytes.size();) {
+        ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
         if (n < 0 && errno == EINTR) continue;
-        if (n < 0) return fail("cannot write " + temp);
+        if (n < 0) return ioError(path_, "cannot write " + temp_);
         done += size_t(n);
     }
-    if (::fsync(fd) != 0) return fail("cannot sync " + temp);
-    int closed = ::close(fd);
-    fd = -1;
-    if (closed != 0) return fail("cannot close " + temp);
+    size_ += bytes.size();
+    return Status::ok();
+}
+
+Status StagedFile::truncate(uint64_t size) {
+    if (::ftruncate(fd_, off_t(size)) != 0 || ::lseek(fd_, off_t(size), SEEK_SET) < 0)
+        return ioError(path_, "cannot cut back " + temp_);
+    size_ = size;
+    return Status::ok();
+}
+
+Status StagedFile::sync() {
+    if (::fsync(fd_) != 0) return ioError(path_, "cannot sync " + temp_);
+    return Status::ok();
+}
+
+Status StagedFile::commit() {
+    const int closed = ::close(fd_);
+    fd_ = -1;
+    if (closed != 0) {
+        Status s = ioError(path_, "cannot close " + temp_);
+        ::unlink(temp_.c_str());
+        return s;
+    }
+    Status s = commitStagedFile(temp_, path_);
+    temp_.clear();  // renamed, or removed by commitStagedFile
+    return s;
+}
+
+Status StagedFile::closeKeeping() {
+    const int closed = ::close(fd_);
+    fd_ = -1;
+    if (closed != 0) {
+        Status s = ioError(path_, "cannot close " + temp_);
+        discard();
+        return s;
+    }
+    temp_.clear();
+    return Status::ok();
+}
+
+void StagedFile::discard() {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+    if (!temp_.empty()) ::unlink(temp_.c_str());
+    temp_.clear();
+}
+
+Expected<std::string> stageFile(const std::string& path, const std::string& contents, bool keepOwner) {
+    Expected<StagedFile> f = StagedFile::open(path, keepOwner);
+    if (!f) return f.error();
+    if (Status s = f->append(contents); !s) return s.error();
+    if (Status s = f->sync(); !s) return s.error();
+    // Closed and handed over: the caller commits or removes it.
+    std::string temp = tempPathFor(path);
+    if (Status s = f->closeKeeping(); !s) return s.error();
     return temp;
 }
 

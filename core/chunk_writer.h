@@ -53,6 +53,39 @@ Status writeFileAtomic(const std::string& path, const std::string& contents);
 Expected<std::string> stageFile(const std::string& path, const std::string& contents, bool keepOwner = true);
 Status commitStagedFile(const std::string& staged, const std::string& path);
 
+// stageFile in pieces, for an output too large to hold (bake --results streams one chunk
+// at a time): the same temporary, permissions and owner. Not thread-safe.
+class StagedFile {
+public:
+    StagedFile() = default;
+    ~StagedFile() { discard(); }
+    StagedFile(StagedFile&& o) noexcept { *this = std::move(o); }
+    StagedFile& operator=(StagedFile&& o) noexcept;
+    StagedFile(const StagedFile&) = delete;
+    StagedFile& operator=(const StagedFile&) = delete;
+
+    static Expected<StagedFile> open(const std::string& path, bool keepOwner = true);
+    bool isOpen() const { return fd_ >= 0; }
+    Status append(const std::string& bytes);
+    // Bytes written so far (the end of the file).
+    uint64_t size() const { return size_; }
+    // Cuts the file back to its first `size` bytes (a part written again).
+    Status truncate(uint64_t size);
+    // Everything written is on disk (fsync): a crash after this leaves the whole file.
+    Status sync();
+    // Closes it and renames it over the path (commitStagedFile; sync() first).
+    Status commit();
+    // Closes and removes the temporary (nothing happens once committed).
+    void discard();
+    // Closes it and leaves the temporary for the caller (stageFile).
+    Status closeKeeping();
+
+private:
+    std::string path_, temp_;
+    int fd_ = -1;
+    uint64_t size_ = 0;
+};
+
 // Where writing `path` must go: a symbolic link (or a chain of them) is followed to the
 // file it names, so that the link stays a link and its target gets the new bytes (staged
 // beside the target and renamed over it). Any other path is returned as it is.

@@ -304,25 +304,28 @@ std::string writeResults(const ResultsFile& file) {
     return text + resultsTail(file, !file.chunks.empty());
 }
 
+void Summary::count(const ChunkRecord& c) {
+    ++chunks;
+    for (const ObjectRecord& o : c.objects) {
+        if (o.skipped) continue;
+        groups += o.groups.size();
+        for (const GroupRecord& g : o.groups)
+            for (const BitRecord& b : g.lights) {
+                ++bits;
+                if (b.verdict == "culled") {
+                    ++culled;
+                    ++culledBy[b.stage];
+                } else {
+                    ++kept;  // written 1: with a witness, or because nobody could decide
+                    ++(b.verdict == "kept" ? provedKept : undecided);
+                }
+            }
+    }
+}
+
 Summary summarize(const std::vector<ChunkRecord>& chunks) {
     Summary s;
-    s.chunks = chunks.size();
-    for (const ChunkRecord& c : chunks)
-        for (const ObjectRecord& o : c.objects) {
-            if (o.skipped) continue;
-            s.groups += o.groups.size();
-            for (const GroupRecord& g : o.groups)
-                for (const BitRecord& b : g.lights) {
-                    ++s.bits;
-                    if (b.verdict == "culled") {
-                        ++s.culled;
-                        ++s.culledBy[b.stage];
-                    } else {
-                        ++s.kept;  // written 1: with a witness, or because nobody could decide
-                        ++(b.verdict == "kept" ? s.provedKept : s.undecided);
-                    }
-                }
-        }
+    for (const ChunkRecord& c : chunks) s.count(c);
     return s;
 }
 

@@ -108,6 +108,9 @@ struct Summary {
     // Per light, over every chunk (left out by older files, and not derived for a file
     // without a "summary": core/savings.h computes it from the groups' triangles).
     std::vector<LightSavingsRecord> savings;
+
+    // Adds the bits of one more chunk (the counts above; not `savings`).
+    void count(const ChunkRecord& chunk);
 };
 
 // A shard's part of a bake (`bake --shard K/N`): what `merge` needs to check that the

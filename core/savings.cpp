@@ -57,15 +57,24 @@ void Tally::add(size_t light, Why why, std::string_view stage, uint64_t triangle
     if (!chunks_.empty()) addTo(chunks_.back()[light], why, stage, w);
 }
 
+void Tally::addChunk(const results::ChunkRecord& c) {
+    beginChunk();
+    for (const results::ObjectRecord& o : c.objects)
+        for (const results::GroupRecord& g : o.groups)
+            for (const results::BitRecord& b : g.lights)
+                add(size_t(b.light - 1), classify(b.verdict, b.stage, b.reason), b.stage, g.triangles.value_or(0));
+}
+
+std::vector<LightSavingsRecord> Tally::takeLastChunk() {
+    if (chunks_.empty()) return {};
+    std::vector<LightSavingsRecord> last = std::move(chunks_.back());
+    chunks_.pop_back();
+    return last;
+}
+
 Tally tallyResults(const ResultsFile& file) {
     Tally t(file.lights.size());
-    for (const results::ChunkRecord& c : file.chunks) {
-        t.beginChunk();
-        for (const results::ObjectRecord& o : c.objects)
-            for (const results::GroupRecord& g : o.groups)
-                for (const results::BitRecord& b : g.lights)
-                    t.add(size_t(b.light - 1), classify(b.verdict, b.stage, b.reason), b.stage, g.triangles.value_or(0));
-    }
+    for (const results::ChunkRecord& c : file.chunks) t.addChunk(c);
     return t;
 }
 

@@ -58,6 +58,11 @@ public:
     void beginChunk();
     // One (group, light) bit: `light` from 0; `triangles` the group's placed triangles.
     void add(size_t light, Why why, std::string_view stage, uint64_t triangles);
+    // One chunk of a results file, from its groups' `triangles` (as tallyResults counts it).
+    void addChunk(const results::ChunkRecord& chunk);
+    // The figures of the last chunk begun, removed from chunks() (a bake that streams its
+    // results file keeps only the world's figures).
+    std::vector<LightSavingsRecord> takeLastChunk();
     const std::vector<LightSavingsRecord>& world() const { return world_; }
     // Per chunk, in the order begun.
     const std::vector<std::vector<LightSavingsRecord>>& chunks() const { return chunks_; }

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 #include "core/status.h"
@@ -43,6 +44,10 @@ public:
     // Errors from the stage's library (Embree, CGAL, GL) come back as ErrorKind::Internal;
     // the table then holds only the decisions made before the failure.
     virtual Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) = 0;
+    // The bake is about to free these meshes (it loads chunks as windows need them and drops
+    // them after: core/space_source.h). A cache keyed by a mesh's address must forget them
+    // now, since a mesh loaded later may get the same address.
+    virtual void forgetMeshes(const std::unordered_set<const Mesh*>& meshes) { (void)meshes; }
 };
 
 // Sets up the verdict table of the window's centre chunk: one row per model/terrain element

@@ -104,6 +104,11 @@ void MeshTreeCache::keepOnly(const std::unordered_set<const Mesh*>& meshes) {
         it = meshes.count(it->first) ? std::next(it) : entries_.erase(it);
 }
 
+void MeshTreeCache::forget(const std::unordered_set<const Mesh*>& meshes) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const Mesh* m : meshes) entries_.erase(m);
+}
+
 size_t MeshTreeCache::size() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return entries_.size();

@@ -128,6 +128,8 @@ public:
     const BoxTree& tree(const Mesh& mesh);
     // Drops the trees of meshes not in `meshes` (called once per window, before any task).
     void keepOnly(const std::unordered_set<const Mesh*>& meshes);
+    // Drops the trees of `meshes` (about to be freed).
+    void forget(const std::unordered_set<const Mesh*>& meshes);
     size_t size() const;
 
 private:

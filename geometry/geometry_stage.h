@@ -28,6 +28,7 @@ public:
     // Decides nothing for a window with skipped objects: an object that could not be
     // loaded might have been a receiver.
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
+    void forgetMeshes(const std::unordered_set<const Mesh*>& meshes) override { trees_.forget(meshes); }
 
     // Meshes whose trees are kept (for tests: the cache follows the window).
     size_t cachedMeshTrees() const { return trees_.size(); }

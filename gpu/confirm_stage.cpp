@@ -482,6 +482,10 @@ struct GpuConfirmStage::LightWork {
 GpuConfirmStage::GpuConfirmStage(GpuConfirmOptions options) : options_(options) {}
 GpuConfirmStage::~GpuConfirmStage() = default;  // destroying the context frees its objects
 
+void GpuConfirmStage::forgetMeshes(const std::unordered_set<const Mesh*>& meshes) {
+    for (const Mesh* m : meshes) edges_.erase(m);
+}
+
 std::string GpuConfirmStage::glDescription() const { return gl_ ? gl_->session->context->report() : std::string(); }
 
 Status GpuConfirmStage::ensureGl() {

@@ -107,6 +107,7 @@ public:
     // undecided. The OpenGL context is made on the first call that has work; no context
     // is an ErrorKind::Internal error.
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
+    void forgetMeshes(const std::unordered_set<const Mesh*>& meshes) override;
 
     // Every bit the last run examined, with the pixels that passed (for the raycast stage).
     const std::vector<GroupPixels>& passedPixels() const { return groups_; }

@@ -45,6 +45,14 @@ EmbreeScenes::~EmbreeScenes() {
     for (auto& [mesh, proto] : prototypes_) release(proto);
 }
 
+void EmbreeScenes::forget(const std::unordered_set<const Mesh*>& meshes) {
+    for (const Mesh* m : meshes)
+        if (auto it = prototypes_.find(m); it != prototypes_.end()) {
+            release(it->second);
+            prototypes_.erase(it);
+        }
+}
+
 const EmbreeScenes::Prototype& EmbreeScenes::prototype(const Mesh* mesh, bool terrain) {
     auto it = prototypes_.find(mesh);
     if (it != prototypes_.end()) return it->second;

@@ -61,6 +61,8 @@ public:
     // are released (those of the previous window that it left behind).
     WindowScene buildWindow(const BakeWindow& window);
     size_t prototypeCount() const { return prototypes_.size(); }
+    // Releases the prototypes of `meshes` (about to be freed).
+    void forget(const std::unordered_set<const Mesh*>& meshes);
 
 private:
     // A mesh's scenes, in mesh coordinates less `offset` (terrain: its rounded middle

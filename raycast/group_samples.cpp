@@ -109,6 +109,11 @@ std::vector<glm::dvec3> GroupSampleCache::placed(const WindowObject& object, uin
     return place(object, *local);
 }
 
+void GroupSampleCache::forget(const std::unordered_set<const Mesh*>& meshes) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto it = local_.begin(); it != local_.end();) it = meshes.count(it->first.first) ? local_.erase(it) : std::next(it);
+}
+
 size_t GroupSampleCache::meshGroups() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return local_.size();

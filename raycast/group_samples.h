@@ -35,6 +35,8 @@ public:
     // The object's group's points, window-local.
     std::vector<glm::dvec3> placed(const WindowObject& object, uint32_t group);
     size_t meshGroups() const;
+    // Drops the points of `meshes` (about to be freed: a later mesh may get the address).
+    void forget(const std::unordered_set<const Mesh*>& meshes);
 
 private:
     int area_, features_;

@@ -90,6 +90,11 @@ RaycastStage::RaycastStage(RaycastOptions options) : impl_(std::make_unique<Impl
 
 RaycastStage::~RaycastStage() = default;
 
+void RaycastStage::forgetMeshes(const std::unordered_set<const Mesh*>& meshes) {
+    if (impl_->scenes) impl_->scenes->forget(meshes);
+    if (impl_->samples) impl_->samples->forget(meshes);
+}
+
 namespace {
 
 // Everything one witness search needs about the window, in window-local double.

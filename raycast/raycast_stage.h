@@ -46,6 +46,7 @@ public:
     // terrain as triangles), then searches a witness for every undecided bit, in parallel
     // over groups (TBB; call it inside the task arena that sets the thread count).
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
+    void forgetMeshes(const std::unordered_set<const Mesh*>& meshes) override;
 
     // A second, denser search where another stage says a witness may be (the pixels that
     // passed the GPU confirmation): same witness test, other targets.

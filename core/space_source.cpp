@@ -1,0 +1,348 @@
+// The space scan and lazy chunk loading (core/space_source.h), and loadSpace on top of them.
+
+#include "core/space_source.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <limits>
+#include <set>
+
+#include <glm/common.hpp>
+
+#include "core/format.h"
+#include "core/hash.h"
+#include "core/limits.h"
+
+namespace fs = std::filesystem;
+
+namespace shadowcull {
+
+uint64_t contentHash(const Mesh& m) {
+    Hasher h;
+    h.pod(uint64_t(m.positions.size()));
+    for (const glm::dvec3& p : m.positions) h.vec(p);
+    h.pod(uint64_t(m.triangles.size()));
+    for (size_t t = 0; t < m.triangles.size(); ++t) h.pod(m.triangles[t]).pod(m.triangleGroup[t]);
+    for (const PrimitiveGroup& g : m.groups) h.pod(g.alphaTested).pod(g.doubleSided);
+    return h.value();
+}
+
+uint64_t contentHash(const Heightfield& hf) {
+    Hasher h;
+    h.pod(hf.n).pod(hf.size);
+    h.bytes(hf.heights.data(), hf.heights.size() * sizeof(double));
+    return h.value();
+}
+
+namespace {
+
+Error bad(const std::string& file, int line, const std::string& msg) { return makeError(ErrorKind::BadInput, file, line, msg); }
+
+const char* const kObjectSkipped = "; object skipped (its <shadow> is left as it was)";
+
+// Why a placed mesh lies outside what the stages can represent (core/limits.h), or nothing.
+// The bounds of the mesh's box under the transform bound every placed vertex.
+std::optional<std::string> placedBeyondLimits(const ResourceSummary& mesh, const RowTransform& t) {
+    if (!mesh.hasVertices) return std::nullopt;
+    double reach = 0;
+    for (int k = 0; k < 8; ++k) {
+        const glm::dvec3 corner((k & 1) ? mesh.hi.x : mesh.lo.x, (k & 2) ? mesh.hi.y : mesh.lo.y, (k & 4) ? mesh.hi.z : mesh.lo.z);
+        const glm::dvec3 q = t.apply(corner);
+        reach = std::max({reach, std::abs(q.x), std::abs(q.y), std::abs(q.z)});
+    }
+    if (reach <= limits::kMaxLocalCoordinate) return std::nullopt;
+    return "placed, the mesh reaches " + formatNumber(reach) + " m from its chunk origin, beyond the accepted " +
+           formatNumber(limits::kMaxLocalCoordinate) + " m (docs/format.md, accepted ranges)";
+}
+
+ResourceSummary summarize(const Mesh& m) {
+    ResourceSummary s;
+    s.usable = true;
+    s.contentHash = contentHash(m);
+    s.lo = glm::dvec3(std::numeric_limits<double>::max());
+    s.hi = glm::dvec3(-std::numeric_limits<double>::max());
+    for (const glm::dvec3& p : m.positions) {
+        s.lo = glm::min(s.lo, p);
+        s.hi = glm::max(s.hi, p);
+    }
+    s.hasVertices = !m.positions.empty();
+    s.sourceFiles = m.sourceFiles;
+    return s;
+}
+
+ResourceSummary summarize(const Heightfield& hf) {
+    ResourceSummary s;
+    s.usable = true;
+    s.contentHash = contentHash(hf);
+    s.sourceFiles = hf.sourceFiles;
+    return s;
+}
+
+}  // namespace
+
+std::string SpaceSource::keyOf(const ChunkObject& o) const {
+    // Models and terrains are loaded differently: the same path is two resources.
+    return (o.kind == ChunkObject::Kind::Model ? "m:" : "t:") +
+           (fs::path(settings_.resourceRoot) / o.resource).lexically_normal().string();
+}
+
+const ResourceSummary* SpaceSource::resource(const ChunkObject& o) const {
+    if (o.resource.empty()) return nullptr;
+    auto it = resources_.find(keyOf(o));
+    return it == resources_.end() ? nullptr : &it->second;
+}
+
+Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>& diagnostics) {
+    for (ChunkObject& o : cf.objects) {
+        if (o.skipped) continue;
+        const std::string key = keyOf(o);
+        const std::string full = key.substr(2);
+        const bool model = o.kind == ChunkObject::Kind::Model;
+        auto found = resources_.find(key);
+        std::shared_ptr<const Mesh> mesh;
+        std::shared_ptr<const Heightfield> terrain;
+        if (found == resources_.end()) {
+            // First use: load it, and say once what is wrong with it (the objects are named
+            // one by one below).
+            ResourceSummary s;
+            if (model) {
+                Expected<Mesh> m = loadModelResource(full);
+                if (m) mesh = std::make_shared<const Mesh>(std::move(*m)), s = summarize(*mesh);
+                else diagnostics.push_back({m.error().file, m.error().line, m.error().message + "; every object using it is skipped"});
+            } else {
+                Expected<Heightfield> t = loadTerrainResource(full, settings_.chunkSize);
+                if (t) terrain = std::make_shared<const Heightfield>(std::move(*t)), s = summarize(*terrain);
+                else diagnostics.push_back({t.error().file, t.error().line, t.error().message + "; every object using it is skipped"});
+            }
+            found = resources_.emplace(key, std::move(s)).first;
+            if (mesh) liveMeshes_.emplace(key, mesh);
+            if (terrain) liveTerrains_.emplace(key, terrain);
+        }
+        const ResourceSummary& s = found->second;
+        if (!s.usable) {
+            o.skipped = true;
+            o.skipReason = "resource " + o.resource + " could not be loaded";
+            diagnostics.push_back({cf.path, o.line, o.skipReason + kObjectSkipped});
+            continue;
+        }
+        if (model)
+            if (std::optional<std::string> far = placedBeyondLimits(s, o.transform)) {
+                o.skipped = true;
+                o.skipReason = *far;
+                diagnostics.push_back({cf.path, o.line, *far + kObjectSkipped});
+                continue;
+            }
+        if (!attach) continue;
+        // Attach what a loaded chunk holds, or load it again: it must be what the scan read.
+        if (model) {
+            auto live = liveMeshes_.find(key);
+            if (live == liveMeshes_.end()) {
+                Expected<Mesh> m = loadModelResource(full);
+                if (!m || contentHash(*m) != s.contentHash)
+                    return makeError(ErrorKind::Io, full, 0, "changed on disk while the bake ran (it was read at the start); bake again");
+                live = liveMeshes_.emplace(key, std::make_shared<const Mesh>(std::move(*m))).first;
+            }
+            o.mesh = live->second;
+        } else {
+            auto live = liveTerrains_.find(key);
+            if (live == liveTerrains_.end()) {
+                Expected<Heightfield> t = loadTerrainResource(full, settings_.chunkSize);
+                if (!t || contentHash(*t) != s.contentHash)
+                    return makeError(ErrorKind::Io, full, 0, "changed on disk while the bake ran (it was read at the start); bake again");
+                live = liveTerrains_.emplace(key, std::make_shared<const Heightfield>(std::move(*t))).first;
+            }
+            o.heightfield = live->second;
+        }
+    }
+    return Status::ok();
+}
+
+Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::string& resourceRootOverride,
+                                        const std::vector<ChunkCoord>* only, Space* keep) {
+    SpaceSource src;
+    Expected<SpaceSettings> st = readSpaceSettings(spaceDir, resourceRootOverride);
+    if (!st) return st.error();
+    src.settings_ = std::move(*st);
+    const SpaceSettings& S = src.settings_;
+
+    // Which chunks to read: all, or the named ones and their neighbours.
+    std::set<ChunkCoord> wanted;
+    if (only) {
+        for (ChunkCoord c : *only)
+            for (int dx = -S.neighbours.left; dx <= S.neighbours.right; ++dx)
+                for (int dz = -S.neighbours.bottom; dz <= S.neighbours.top; ++dz) wanted.insert({c.x + dx, c.z + dz});
+    }
+    std::error_code ec;
+    std::vector<fs::path> files;
+    for (const fs::directory_entry& de : fs::directory_iterator(spaceDir, ec))
+        if (de.path().extension() == ".chunk") files.push_back(de.path());
+    if (ec) return makeError(ErrorKind::BadInput, spaceDir, 0, "cannot list the space directory: " + ec.message());
+    std::sort(files.begin(), files.end());
+    if (files.empty())
+        return bad(spaceDir, 0, "the space has a space.xml but no chunk files (XXXXZZZZo.chunk beside it): nothing to bake");
+    // Each chunk with its position in file-name order (the order warnings and errors of
+    // reading the files follow, as loadSpace has always read them).
+    std::map<ChunkCoord, std::pair<fs::path, size_t>> named;
+    std::vector<Diagnostic> nameWarnings;
+    for (size_t k = 0; k < files.size(); ++k) {
+        const fs::path& p = files[k];
+        std::optional<ChunkCoord> c = parseChunkName(p.filename().string());
+        if (!c) {
+            nameWarnings.push_back({p.string(), 0, "not a chunk name (XXXXZZZZo.chunk, 16-bit hex); file ignored"});
+            continue;
+        }
+        // Hex digits in either case name the same chunk: two such files are two versions of
+        // one chunk, and baking either would silently drop the other.
+        if (auto [it, added] = named.emplace(*c, std::make_pair(p, k)); !added)
+            return bad(p.string(), 0, "names the same chunk as " + it->second.first.filename().string() + " (grid " +
+                                          std::to_string(c->x) + ", " + std::to_string(c->z) +
+                                          "); keep one of the two files");
+    }
+    if (named.empty()) {
+        std::string some;
+        for (size_t k = 0; k < files.size() && k < 3; ++k) some += (k ? ", " : "") + files[k].filename().string();
+        return bad(spaceDir, 0, "the space has no chunk files: " + std::to_string(files.size()) + " file(s) end in .chunk (" +
+                                    some + (files.size() > 3 ? ", ..." : "") +
+                                    "), but none is named XXXXZZZZo.chunk (16-bit hex grid x and z)");
+    }
+
+    // One chunk at a time, in grid order: read it, resolve its resources, show it, drop it
+    // (or keep it). The warnings of reading a file are kept by file order, those of its
+    // resources come in grid order: loadSpace's order.
+    std::map<size_t, std::vector<Diagnostic>> readWarnings;  // by file order
+    std::vector<Diagnostic> resourceWarnings;
+    std::set<std::string> namedResources;                     // every resource path an object names
+    for (const auto& [coord, file] : named) {
+        if (only && !wanted.count(coord)) continue;
+        const std::string path = file.first.string();
+        Expected<ChunkFile> cf = readChunkFile(path, coord, readWarnings[file.second]);
+        if (!cf) {
+            // loadSpace stops at the first malformed file in file order: one of those not
+            // read yet may come before this one.
+            Error first = cf.error();
+            size_t firstOrder = file.second;
+            for (const auto& [c2, f2] : named) {
+                if (f2.second >= firstOrder || !(coord < c2) || (only && !wanted.count(c2))) continue;
+                std::vector<Diagnostic> ignored;
+                if (Expected<ChunkFile> e = readChunkFile(f2.first.string(), c2, ignored); !e) first = e.error(), firstOrder = f2.second;
+            }
+            return first;
+        }
+        for (const ChunkObject& o : cf->objects)
+            if (!o.resource.empty()) namedResources.insert((fs::path(S.resourceRoot) / o.resource).lexically_normal().string());
+        if (Status s = src.resolve(*cf, keep != nullptr, resourceWarnings); !s) return s.error();
+        ChunkEntry entry{path, cf->contentHash, 0, 0};
+        Hasher h;
+        h.pod(coord);
+        for (const ChunkObject& o : cf->objects) {
+            entry.usableObjects += o.skipped ? 0 : 1;
+            h.pod(o.kind).pod(o.elementIndex).str(o.resource).str(o.uuid).pod(o.castsShadow).pod(o.skipped);
+            for (const glm::dvec3& r : o.transform.rows) h.vec(r);
+            if (!o.skipped) h.pod(src.resource(o)->contentHash);
+        }
+        entry.objectsHash = h.value();
+        src.chunks_.emplace(coord, std::move(entry));
+        if (keep) {
+            keep->chunks.emplace(coord, std::move(*cf));
+        } else {
+            // Only this chunk's objects held them: the meshes go (a later use finds their
+            // summary; the bake loads them again when a window needs them).
+            src.liveMeshes_.clear();
+            src.liveTerrains_.clear();
+        }
+    }
+    if (keep) {
+        // The objects hold their meshes; the source lets them go with the objects.
+        src.liveMeshes_.clear();
+        src.liveTerrains_.clear();
+    }
+    src.diagnostics_ = std::move(nameWarnings);
+    for (auto& [order, warnings] : readWarnings)
+        src.diagnostics_.insert(src.diagnostics_.end(), warnings.begin(), warnings.end());
+    src.diagnostics_.insert(src.diagnostics_.end(), resourceWarnings.begin(), resourceWarnings.end());
+    // The files: space.xml, the chunk files, every resource named and the files behind
+    // those that were used (Space::inputFiles).
+    std::set<std::string> inputs{(fs::path(S.spaceDir) / "space.xml").string()};
+    for (const auto& [coord, e] : src.chunks_) inputs.insert(e.path);
+    inputs.insert(namedResources.begin(), namedResources.end());
+    src.inputFiles_ = std::move(inputs);
+    return src;
+}
+
+Expected<SpaceSource> SpaceSource::scan(const std::string& spaceDir, const std::string& resourceRootOverride,
+                                        const std::vector<ChunkCoord>* only) {
+    return read(spaceDir, resourceRootOverride, only, nullptr);
+}
+
+std::vector<std::string> SpaceSource::inputFiles() const {
+    std::set<std::string> files = inputFiles_;
+    for (const auto& [key, s] : resources_)
+        if (s.usable) files.insert(s.sourceFiles.begin(), s.sourceFiles.end());
+    return {files.begin(), files.end()};
+}
+
+Status SpaceSource::load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
+    const ChunkEntry& entry = chunks_.at(c);
+    std::vector<Diagnostic> ignored;  // the scan gave these
+    Expected<ChunkFile> cf = readChunkFile(entry.path, c, ignored);
+    if (!cf) return cf.error();
+    const bool edited = cf->contentHash != entry.contentHash;
+    // The bake writes a chunk only while it holds the bytes the scan read: an edit made
+    // since is kept (the bake refuses the chunk with a warning), whatever it now says.
+    cf->contentHash = entry.contentHash;
+    std::vector<Diagnostic> warnings;
+    if (Status s = resolve(*cf, true, warnings); !s) return s;
+    if (edited) lateDiagnostics.insert(lateDiagnostics.end(), warnings.begin(), warnings.end());
+    space.chunks[c] = std::move(*cf);
+    return Status::ok();
+}
+
+std::vector<std::shared_ptr<const Mesh>> SpaceSource::unload(ChunkCoord c, Space& space, TerrainMeshes& terrainMeshes) {
+    space.chunks.erase(c);
+    std::vector<std::shared_ptr<const Mesh>> gone;
+    for (auto it = liveMeshes_.begin(); it != liveMeshes_.end();) {
+        if (it->second.use_count() == 1) {  // only this map holds it: no loaded object uses it
+            gone.push_back(std::move(it->second));
+            it = liveMeshes_.erase(it);
+        } else {
+            ++it;
+        }
+    }
+    for (auto it = liveTerrains_.begin(); it != liveTerrains_.end();) {
+        if (it->second.use_count() == 1) {
+            if (auto t = terrainMeshes.find(it->second.get()); t != terrainMeshes.end()) {
+                gone.push_back(std::move(t->second));
+                terrainMeshes.erase(t);
+            }
+            it = liveTerrains_.erase(it);
+        } else {
+            ++it;
+        }
+    }
+    return gone;
+}
+
+std::vector<std::string> Space::inputFiles() const {
+    std::set<std::string> files{(fs::path(settings.spaceDir) / "space.xml").string()};
+    for (const auto& [coord, cf] : chunks) {
+        files.insert(cf.path);
+        for (const ChunkObject& o : cf.objects) {
+            if (!o.resource.empty()) files.insert((fs::path(settings.resourceRoot) / o.resource).lexically_normal().string());
+            if (o.mesh) files.insert(o.mesh->sourceFiles.begin(), o.mesh->sourceFiles.end());
+            if (o.heightfield) files.insert(o.heightfield->sourceFiles.begin(), o.heightfield->sourceFiles.end());
+        }
+    }
+    return {files.begin(), files.end()};
+}
+
+Expected<Space> loadSpace(const std::string& spaceDir, const std::string& resourceRootOverride,
+                          const std::vector<ChunkCoord>* only) {
+    Space space;
+    Expected<SpaceSource> src = SpaceSource::read(spaceDir, resourceRootOverride, only, &space);
+    if (!src) return src.error();
+    space.settings = src->settings_;
+    space.diagnostics = src->diagnostics_;
+    return space;
+}
+
+}  // namespace shadowcull

@@ -1,0 +1,103 @@
+// Reading a space chunk by chunk, so that a bake's memory follows its window and not the
+// world (issue 16). A bake first scans every chunk file once, in grid order: it parses the
+// file and loads each resource the first time an object names it, learns what loadSpace
+// would have said (the warnings, in loadSpace's order; the objects that are skipped; the
+// files read), and keeps only a summary per chunk and per resource. It then loads a chunk
+// again when a window first needs it, and drops it (and the meshes no loaded chunk uses)
+// when no window will. loadSpace is the same scan keeping everything.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/scene.h"
+#include "core/status.h"
+#include "core/window.h"
+
+namespace shadowcull {
+
+// Hashes of what a resource gives the stages (bake --resume, shards): the triangles, groups
+// and their flags; the heightfield's samples.
+uint64_t contentHash(const Mesh& mesh);
+uint64_t contentHash(const Heightfield& heightfield);
+
+// What the scan learnt of one resource file, kept after its mesh or heightfield is dropped.
+struct ResourceSummary {
+    bool usable = false;        // loaded without error (else every object naming it is skipped)
+    uint64_t contentHash = 0;   // of the mesh or heightfield (usable only)
+    bool hasVertices = false;   // model: the box below is set
+    glm::dvec3 lo{0.0}, hi{0.0};  // model: the box of its vertices, mesh coordinates (metres)
+    std::vector<std::string> sourceFiles;  // every file read to build it
+};
+
+// One chunk file as the scan read it.
+struct ChunkEntry {
+    std::string path;
+    uint64_t contentHash = 0;  // of the bytes the scan read (ChunkFile::contentHash)
+    size_t usableObjects = 0;  // objects not skipped
+    // Hash of what the stages read of it (bake --resume, shards): every object's element,
+    // kind, resource, uuid, flags and placement, and its mesh's or heightfield's content.
+    uint64_t objectsHash = 0;
+};
+
+class SpaceSource {
+public:
+    // Reads space.xml, lists the chunk files and scans every one of them (or those of `only`
+    // and their neighbours). Errors are loadSpace's: a malformed chunk file stops the scan
+    // (the first such file in file-name order, as loadSpace reads them).
+    static Expected<SpaceSource> scan(const std::string& spaceDir, const std::string& resourceRootOverride,
+                                      const std::vector<ChunkCoord>* only = nullptr);
+
+    const SpaceSettings& settings() const { return settings_; }
+    // Every warning of reading the space, exactly as loadSpace gives them.
+    const std::vector<Diagnostic>& diagnostics() const { return diagnostics_; }
+    // The chunks scanned, in grid order.
+    const std::map<ChunkCoord, ChunkEntry>& chunks() const { return chunks_; }
+    // Every file the space was read from, sorted (Space::inputFiles of the whole space).
+    std::vector<std::string> inputFiles() const;
+    // The resource an object names, as the scan found it; null when it names none the scan
+    // read (an object skipped before its resource was looked at).
+    const ResourceSummary* resource(const ChunkObject& object) const;
+
+    // Puts chunk `c` (one of chunks()) into `space.chunks`, read again, with its objects
+    // skipped as the scan skipped them and their meshes attached (loaded again unless a
+    // loaded chunk holds them). The chunk keeps the content hash the scan read, so a file
+    // edited since is never written by the bake (its text no longer has that hash). A
+    // resource that no longer loads, or loads different content, is an Io error: the scan's
+    // verdict on it would no longer hold. `lateDiagnostics` gets the warnings about objects
+    // an edit since the scan added.
+    Status load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics);
+    // Drops chunk `c` from `space.chunks`, then the meshes and heightfields no loaded chunk
+    // uses any more (with their terrain meshes). Returns the meshes that go: whatever is
+    // keyed by their address (the stages' caches) must forget them before the caller lets
+    // the last reference go, since a mesh loaded later may reuse the address.
+    std::vector<std::shared_ptr<const Mesh>> unload(ChunkCoord c, Space& space, TerrainMeshes& terrainMeshes);
+    // Resources held for loaded chunks now (tests: memory follows the window).
+    size_t liveResources() const { return liveMeshes_.size() + liveTerrains_.size(); }
+
+private:
+    friend Expected<Space> loadSpace(const std::string&, const std::string&, const std::vector<ChunkCoord>*);
+    // The scan; with `keep`, every chunk goes into keep->chunks with its meshes attached.
+    static Expected<SpaceSource> read(const std::string& spaceDir, const std::string& resourceRootOverride,
+                                      const std::vector<ChunkCoord>* only, Space* keep);
+    // Resolves the objects' resources: skipped flags, reasons and warnings as loadSpace
+    // gives them; `attach` also attaches the meshes (loading what is not live).
+    Status resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>& diagnostics);
+    std::string keyOf(const ChunkObject& object) const;
+
+    SpaceSettings settings_;
+    std::map<ChunkCoord, ChunkEntry> chunks_;
+    std::vector<Diagnostic> diagnostics_;
+    std::set<std::string> inputFiles_;  // space.xml, the chunk files, every resource named
+    std::map<std::string, ResourceSummary> resources_;  // by keyOf
+    // Meshes and heightfields attached to loaded chunks, by keyOf.
+    std::map<std::string, std::shared_ptr<const Mesh>> liveMeshes_;
+    std::map<std::string, std::shared_ptr<const Heightfield>> liveTerrains_;
+};
+
+}  // namespace shadowcull

@@ -1,0 +1,298 @@
+// Issue 16: a bake's memory follows its window, not the world. The space is scanned once,
+// chunks are loaded when a window needs them and dropped when no window will, and the
+// results file is streamed a chunk at a time: the verdicts, the warnings and the bytes
+// written must be those of a bake that holds everything.
+
+#include <algorithm>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "bench/world_gen.h"
+#include "cli/pipeline.h"
+#include "cli/report.h"
+#include "cli/resume.h"
+#include "core/chunk_writer.h"
+#include "core/results_file.h"
+#include "core/space_source.h"
+#include "geometry/box_tree.h"
+#include "raycast/group_samples.h"
+#include "tests/test_files.h"
+
+using namespace shadowcull;
+using namespace shadowcull::testing;
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kSample = fs::path(SHADOWCULL_SOURCE_DIR) / "data" / "sample";
+
+// 6 x 5 chunks of the benchmark forest, thinned: a terrain per chunk (so heightfields and
+// their meshes come and go as the window slides), trees, rocks, buildings, local lights.
+std::string writeStripWorld(const fs::path& dir) {
+    bench::WorldSpec w;
+    w.name = "lazy-test";
+    w.chunksX = 6, w.chunksZ = 5;
+    w.seed = 1616;
+    w.objectsPerChunk = 16;
+    w.terrainSamples = 9;
+    w.localLights = 3;
+    const fs::path space = dir / "space";
+    bench::writeWorld(w, space.string());
+    return space.string();
+}
+
+cli::BakeOptions quickBake(const std::string& space) {
+    cli::BakeOptions opt;
+    opt.spaceDir = space;
+    opt.write = false;
+    opt.useGpu = false;
+    opt.raycast.areaSamples = 8;
+    return opt;
+}
+
+// verdict + stage of every bit of a chunk, in order.
+std::vector<std::string> codes(const ChunkVerdicts& cv) {
+    std::vector<std::string> s;
+    for (const ObjectVerdicts& ov : cv.objects)
+        for (const Decision& d : ov.decisions) s.push_back(verdictName(d.verdict) + std::string(":") + std::string(d.stage));
+    return s;
+}
+
+// "" when equal, else where they first differ.
+std::string firstDifference(const std::vector<std::string>& a, const std::vector<std::string>& b) {
+    if (a.size() != b.size()) return std::to_string(a.size()) + " bits against " + std::to_string(b.size());
+    for (size_t k = 0; k < a.size(); ++k)
+        if (a[k] != b[k]) return "bit " + std::to_string(k) + ": " + a[k] + " against " + b[k];
+    return {};
+}
+
+}  // namespace
+
+// The scan says what loadSpace says (warnings in its order, input files), and a chunk loaded
+// lazily is the chunk loadSpace reads: same objects, skipped alike, same mesh content.
+TEST(SpaceSource, LazyChunksAreTheChunksLoadSpaceReads) {
+    const fs::path dir = freshTestDir();
+    fs::copy(kSample, dir / "space", fs::copy_options::recursive);
+    const fs::path space = dir / "space";
+    // A bad resource shared by many objects, a missing one, a bad name, a singular transform.
+    fs::remove(space / "models/tree.mtl");
+    writeText(space / "zz.chunk", "<chunk/>\n");
+    std::string text = readText(space / "ffffffffo.chunk");
+    text.replace(text.find("models/rock_a"), 13, "models/nope");
+    writeText(space / "ffffffffo.chunk", text);
+
+    Expected<Space> eager = loadSpace(space.string(), "");
+    ASSERT_TRUE(eager) << eager.error().what();
+    Expected<SpaceSource> source = SpaceSource::scan(space.string(), "");
+    ASSERT_TRUE(source) << source.error().what();
+    ASSERT_GE(eager->diagnostics.size(), 4u);
+    ASSERT_EQ(source->diagnostics().size(), eager->diagnostics.size());
+    for (size_t k = 0; k < eager->diagnostics.size(); ++k)
+        EXPECT_EQ(source->diagnostics()[k].what(), eager->diagnostics[k].what());
+    // Every input loadSpace names is one the bake never writes over.
+    const std::vector<std::string> inputs = source->inputFiles();
+    for (const std::string& f : eager->inputFiles()) EXPECT_TRUE(std::binary_search(inputs.begin(), inputs.end(), f)) << f;
+    ASSERT_EQ(source->chunks().size(), eager->chunks.size());
+
+    Space lazy;
+    std::vector<Diagnostic> late;
+    for (const auto& [c, entry] : source->chunks()) {
+        ASSERT_TRUE(source->load(c, lazy, late)) << chunkFileName(c);
+        const ChunkFile& a = eager->chunks.at(c);
+        const ChunkFile& b = lazy.chunks.at(c);
+        EXPECT_EQ(a.contentHash, b.contentHash);
+        ASSERT_EQ(a.objects.size(), b.objects.size());
+        for (size_t k = 0; k < a.objects.size(); ++k) {
+            const ChunkObject &x = a.objects[k], &y = b.objects[k];
+            EXPECT_EQ(x.skipped, y.skipped) << b.path << " #" << k;
+            EXPECT_EQ(x.skipReason, y.skipReason);
+            ASSERT_EQ(bool(x.mesh), bool(y.mesh));
+            ASSERT_EQ(bool(x.heightfield), bool(y.heightfield));
+            if (x.mesh) {
+                EXPECT_EQ(contentHash(*x.mesh), contentHash(*y.mesh));
+            }
+            if (x.heightfield) {
+                EXPECT_EQ(contentHash(*x.heightfield), contentHash(*y.heightfield));
+            }
+        }
+    }
+    EXPECT_TRUE(late.empty()) << "nothing was edited";
+    // Unloading everything lets every mesh and heightfield go.
+    TerrainMeshes terrainMeshes;
+    for (const auto& [c, entry] : source->chunks()) source->unload(c, lazy, terrainMeshes);
+    EXPECT_EQ(source->liveResources(), 0u);
+}
+
+// A resource edited while the bake runs is not silently used in place of what the scan read.
+TEST(SpaceSource, AResourceChangedSinceTheScanIsAnError) {
+    const fs::path dir = freshTestDir();
+    fs::copy(kSample, dir / "space", fs::copy_options::recursive);
+    Expected<SpaceSource> source = SpaceSource::scan((dir / "space").string(), "");
+    ASSERT_TRUE(source);
+    writeText(dir / "space/models/rock_a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    Space lazy;
+    std::vector<Diagnostic> late;
+    bool failed = false;
+    for (const auto& [c, entry] : source->chunks())
+        if (Status s = source->load(c, lazy, late); !s) {
+            failed = true;
+            EXPECT_NE(s.error().what().find("rock_a.obj: changed on disk while the bake ran"), std::string::npos) << s.error().what();
+            break;
+        }
+    EXPECT_TRUE(failed);
+}
+
+// The bake that loads chunks as windows need them gives every chunk the verdicts of a bake
+// of that chunk alone (which reads its window whole), and holds about two columns of the
+// grid, not the grid. Terrain meshes are freed and made again as the window slides: a stage
+// cache that kept a freed mesh's entry would hand it to a new mesh at the same address.
+TEST(LazyBake, VerdictsAreThoseOfWholeWindowsAndMemoryFollowsTheWindow) {
+    const fs::path dir = freshTestDir();
+    const std::string space = writeStripWorld(dir);
+    cli::BakeOptions opt = quickBake(space);
+    Expected<cli::BakeResult> whole = cli::runBake(opt);
+    ASSERT_TRUE(whole) << whole.error().what();
+    ASSERT_EQ(whole->chunks.size(), 30u);
+    // 5 chunks deep: the window of (x, z) holds columns x-1 .. x+1; what a later window
+    // needs stays, the rest goes.
+    EXPECT_LE(whole->peakLoadedChunks, 2u * 5u + 3u);
+    EXPECT_GE(whole->peakLoadedChunks, 9u);
+    size_t culled = 0;
+    for (const ChunkVerdicts& cv : whole->chunks) {
+        Expected<cli::ChunkBake> alone = cli::bakeChunk(opt, cv.coord);
+        ASSERT_TRUE(alone) << alone.error().what();
+        EXPECT_EQ(firstDifference(codes(cv), codes(alone->verdicts)), "") << chunkFileName(cv.coord);
+        for (const ObjectVerdicts& ov : cv.objects)
+            for (const Decision& d : ov.decisions) culled += d.verdict == Verdict::Culled && d.stage == std::string_view("geometry");
+    }
+    EXPECT_GT(culled, 0u) << "the world must exercise the geometry stage's caches";
+    // Counted as it went, the same as counted from the kept verdicts.
+    EXPECT_EQ(whole->totals.chunks, whole->chunks.size());
+    const savings::Tally t = cli::tallyBake(*whole);
+    ASSERT_EQ(t.world().size(), whole->totals.savings.world().size());
+    for (size_t l = 0; l < t.world().size(); ++l) {
+        EXPECT_EQ(t.world()[l].bakeCulls.triangles, whole->totals.savings.world()[l].bakeCulls.triangles);
+        EXPECT_EQ(t.world()[l].undecided.casters, whole->totals.savings.world()[l].undecided.casters);
+    }
+}
+
+// The results file streamed chunk by chunk is, byte for byte, results::writeResults of the
+// whole bake; and a --resume bake that skips every chunk streams the same bytes again.
+TEST(LazyBake, StreamedResultsAreTheWholeFileByteForByte) {
+    const fs::path dir = freshTestDir();
+    const std::string space = writeStripWorld(dir);
+    cli::BakeOptions opt = quickBake(space);
+    opt.write = true;
+    opt.outDir = (dir / "out").string();
+    opt.resume = true;
+    opt.resultsPath = (dir / "r1.json").string();
+    Expected<cli::BakeResult> first = cli::runBake(opt);
+    ASSERT_TRUE(first) << first.error().what();
+    const std::string streamed = readText(dir / "r1.json");
+    EXPECT_EQ(streamed, results::writeResults(cli::resultsFile(*first)));
+    EXPECT_EQ(first->chunksResumed, 0);
+
+    opt.resultsPath = (dir / "r2.json").string();
+    opt.keepVerdicts = false;
+    Expected<cli::BakeResult> again = cli::runBake(opt);
+    ASSERT_TRUE(again) << again.error().what();
+    EXPECT_EQ(again->chunksResumed, 30);
+    EXPECT_TRUE(again->chunks.empty() && again->resumedRecords.empty()) << "nothing kept";
+    EXPECT_EQ(readText(dir / "r2.json"), streamed);
+}
+
+// Each cache keyed by a mesh's address forgets a mesh on request.
+TEST(LazyBake, CachesForgetTheMeshesThatGo) {
+    Mesh a, b;
+    for (Mesh* m : {&a, &b}) {
+        m->positions = {{0, 0, 0}, {1, 0, 0}, {0, 0, 1}};
+        m->triangles = {{0, 1, 2}};
+        m->triangleGroup = {0};
+        m->groups.resize(1);
+    }
+    geometry::MeshTreeCache trees;
+    (void)trees.tree(a);
+    (void)trees.tree(b);
+    ASSERT_EQ(trees.size(), 2u);
+    trees.forget({&a});
+    EXPECT_EQ(trees.size(), 1u);
+
+    WindowObject oa, ob;
+    oa.mesh = &a, ob.mesh = &b;
+    raycast::GroupSampleCache samples(4, 4);
+    (void)samples.placed(oa, 0);
+    (void)samples.placed(ob, 0);
+    ASSERT_EQ(samples.meshGroups(), 2u);
+    samples.forget({&b});
+    EXPECT_EQ(samples.meshGroups(), 1u);
+}
+
+// StagedFile: pieces, a part written again, and nothing left behind when dropped.
+TEST(StagedFile, AppendsCutsBackCommitsAndCleansUp) {
+    const fs::path dir = freshTestDir();
+    const std::string path = (dir / "out.txt").string();
+    {
+        Expected<StagedFile> f = StagedFile::open(path);
+        ASSERT_TRUE(f);
+        ASSERT_TRUE(f->append("head\n"));
+        const uint64_t mark = f->size();
+        ASSERT_TRUE(f->append("a tail that is replaced\n"));
+        ASSERT_TRUE(f->truncate(mark));
+        ASSERT_TRUE(f->append("tail\n"));
+        EXPECT_FALSE(fs::exists(path)) << "nothing replaces the path before commit";
+        ASSERT_TRUE(f->sync());
+        ASSERT_TRUE(f->commit());
+    }
+    EXPECT_EQ(readText(path), "head\ntail\n");
+    EXPECT_FALSE(fs::exists(tempPathFor(path)));
+    {
+        Expected<StagedFile> f = StagedFile::open(path);
+        ASSERT_TRUE(f);
+        ASSERT_TRUE(f->append("never committed\n"));
+        EXPECT_TRUE(fs::exists(tempPathFor(path)));
+    }
+    EXPECT_FALSE(fs::exists(tempPathFor(path))) << "a dropped file removes its temporary";
+    EXPECT_EQ(readText(path), "head\ntail\n");
+}
+
+// The resume journal: appended per chunk, read back after a kill that tore its last line,
+// and compacted to the latest record of each chunk.
+TEST(ResumeJournal, KeepsTheLatestRecordPerChunkAndSurvivesATornLine) {
+    const fs::path dir = freshTestDir();
+    const std::string path = cli::ResumeState::pathIn(dir.string());
+    {
+        cli::ResumeState s;
+        ASSERT_TRUE(s.open(path));
+        ASSERT_TRUE(s.record("a.chunk", 1, "A1", "{\"a\": 1}"));
+        ASSERT_TRUE(s.record("b.chunk", 2, "B"));
+        ASSERT_TRUE(s.record("a.chunk", 3, "A2", "{\"a\": 2}"));
+        EXPECT_TRUE(s.upToDate("a.chunk", 3, "A2", true));
+        EXPECT_EQ(s.results("a.chunk"), "{\"a\": 2}");
+    }
+    // A bake killed while appending: half a line at the end.
+    std::string text = readText(path);
+    writeText(path, text + "{\"chunk\":\"c.chunk\",\"inp");
+    cli::ResumeState s;
+    ASSERT_TRUE(s.open(path));
+    EXPECT_EQ(s.size(), 2u);
+    EXPECT_TRUE(s.upToDate("a.chunk", 3, "A2", true)) << "the latest record wins";
+    EXPECT_FALSE(s.upToDate("a.chunk", 1, "A1"));
+    EXPECT_EQ(s.results("a.chunk"), "{\"a\": 2}");
+    EXPECT_TRUE(s.upToDate("b.chunk", 2, "B"));
+    EXPECT_FALSE(s.upToDate("b.chunk", 2, "B", true)) << "baked without --results";
+    EXPECT_FALSE(s.upToDate("c.chunk", 0, "")) << "a torn record is no record";
+    // Rewritten: a header and one line per chunk.
+    text = readText(path);
+    EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 3);
+    EXPECT_EQ(text.find("c.chunk"), std::string::npos);
+    // Appending after the rewrite keeps the offsets right.
+    ASSERT_TRUE(s.record("d.chunk", 4, "D", "{\"d\": 4}"));
+    EXPECT_EQ(s.results("d.chunk"), "{\"d\": 4}");
+    EXPECT_EQ(s.results("a.chunk"), "{\"a\": 2}");
+    // Another format (the JSON object of older versions): nothing is up to date.
+    writeText(path, "{\"format\": \"shadowcull-bake-state\", \"version\": 1, \"chunks\": {}}\n");
+    cli::ResumeState old;
+    ASSERT_TRUE(old.open(path));
+    EXPECT_EQ(old.size(), 0u);
+}
