@@ -14,6 +14,7 @@
 #include "cli/interrupt.h"
 #include "cli/output_guard.h"
 #include "cli/pipeline.h"
+#include "core/heap_tuning.h"
 #include "cli/check.h"
 #include "cli/diff.h"
 #include "cli/explain.h"
@@ -115,6 +116,7 @@ void addGlOptions(CLI::App* command, GlFlags& flags) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    shadowcull::tuneHeapForLongBakes();
     // Named here, not after argv[0], so that --help reads the same however it was started.
     CLI::App app{"shadowcull: bakes which shadow casters matter, per object, primitive group and light", "shadowcull"};
     app.require_subcommand(1);

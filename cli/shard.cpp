@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cctype>
-#include <functional>
-#include <queue>
 
 #include "core/light_reach.h"
 
@@ -36,22 +34,24 @@ double chunkWork(const SpaceSource& space, ChunkCoord c) {
 }
 
 std::vector<std::vector<ChunkCoord>> partitionChunks(const SpaceSource& space, int count) {
-    std::vector<std::pair<double, ChunkCoord>> work;
-    for (const auto& [coord, e] : space.chunks()) work.emplace_back(chunkWork(space, coord), coord);
-    // Largest first (longest-processing-time rule); stable, so equal work stays in grid order.
-    std::stable_sort(work.begin(), work.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
-    std::vector<std::vector<ChunkCoord>> shards(size_t(std::max(count, 1)));
-    // (work so far, shard): the top is the least loaded, the lowest index among equals.
-    using Load = std::pair<double, size_t>;
-    std::priority_queue<Load, std::vector<Load>, std::greater<Load>> least;
-    for (size_t k = 0; k < shards.size(); ++k) least.push({0.0, k});
-    for (const auto& [w, coord] : work) {
-        Load l = least.top();
-        least.pop();
-        shards[l.second].push_back(coord);
-        least.push({l.first + w, l.second});
+    // Consecutive runs of the grid order, cut where the running work crosses each shard's
+    // share (a chunk goes to the shard its work's midpoint falls in). A run keeps a
+    // shard's windows together: the bake loads each chunk about once and holds two
+    // columns of the grid, where scattered chunks would each load a whole window.
+    std::vector<std::pair<ChunkCoord, double>> work;
+    double total = 0;
+    for (const auto& [coord, e] : space.chunks()) {
+        work.emplace_back(coord, chunkWork(space, coord));
+        total += work.back().second;
     }
-    for (std::vector<ChunkCoord>& s : shards) std::sort(s.begin(), s.end());
+    const size_t n = size_t(std::max(count, 1));
+    std::vector<std::vector<ChunkCoord>> shards(n);
+    double before = 0;
+    for (const auto& [coord, w] : work) {
+        const double middle = before + w / 2;
+        shards[std::min(n - 1, size_t(middle / total * double(n)))].push_back(coord);
+        before += w;
+    }
     return shards;
 }
 

@@ -27,9 +27,10 @@ std::optional<ShardSpec> parseShard(const std::string& text);
 // so that an empty chunk still costs its read and write. Unitless; only ratios matter.
 double chunkWork(const SpaceSource& space, ChunkCoord c);
 
-// The chunks of each of `count` shards, each in grid order: greedy by decreasing work
-// (ties in grid order), each chunk to the shard with the least work so far (ties: the
-// lowest index). Depends only on the space, so every shard computes the same partition.
+// The chunks of each of `count` shards: consecutive runs of the grid order of about equal
+// work (a shard's work is within one chunk's of its share at each end), so that a shard's
+// windows overlap and it loads each chunk about once. Depends only on the space, so every
+// shard computes the same partition.
 std::vector<std::vector<ChunkCoord>> partitionChunks(const SpaceSource& space, int count);
 
 }  // namespace shadowcull::cli

@@ -80,10 +80,18 @@ ResourceSummary summarize(const Heightfield& hf) {
 
 }  // namespace
 
+const std::string& SpaceSource::fullPath(const std::string& resource) const {
+    // Memoised: a world names a few resources hundreds of thousands of times, and path
+    // arithmetic was a tenth of the scan.
+    auto it = fullPaths_.find(resource);
+    if (it == fullPaths_.end())
+        it = fullPaths_.emplace(resource, (fs::path(settings_.resourceRoot) / resource).lexically_normal().string()).first;
+    return it->second;
+}
+
 std::string SpaceSource::keyOf(const ChunkObject& o) const {
     // Models and terrains are loaded differently: the same path is two resources.
-    return (o.kind == ChunkObject::Kind::Model ? "m:" : "t:") +
-           (fs::path(settings_.resourceRoot) / o.resource).lexically_normal().string();
+    return (o.kind == ChunkObject::Kind::Model ? "m:" : "t:") + fullPath(o.resource);
 }
 
 const ResourceSummary* SpaceSource::resource(const ChunkObject& o) const {
@@ -229,7 +237,7 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
             return first;
         }
         for (const ChunkObject& o : cf->objects)
-            if (!o.resource.empty()) namedResources.insert((fs::path(S.resourceRoot) / o.resource).lexically_normal().string());
+            if (!o.resource.empty()) namedResources.insert(src.fullPath(o.resource));
         if (Status s = src.resolve(*cf, keep != nullptr, resourceWarnings); !s) return s.error();
         ChunkEntry entry{path, cf->contentHash, 0, 0};
         Hasher h;

@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <unordered_map>
 #include <string>
 #include <vector>
 
@@ -89,12 +90,14 @@ private:
     // gives them; `attach` also attaches the meshes (loading what is not live).
     Status resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>& diagnostics);
     std::string keyOf(const ChunkObject& object) const;
+    const std::string& fullPath(const std::string& resource) const;  // resource root / resource, normalised
 
     SpaceSettings settings_;
     std::map<ChunkCoord, ChunkEntry> chunks_;
     std::vector<Diagnostic> diagnostics_;
     std::set<std::string> inputFiles_;  // space.xml, the chunk files, every resource named
     std::map<std::string, ResourceSummary> resources_;  // by keyOf
+    mutable std::unordered_map<std::string, std::string> fullPaths_;  // by resource as written
     // Meshes and heightfields attached to loaded chunks, by keyOf.
     std::map<std::string, std::shared_ptr<const Mesh>> liveMeshes_;
     std::map<std::string, std::shared_ptr<const Heightfield>> liveTerrains_;
