@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -333,6 +334,13 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
 
 namespace {
 
+// User and system time of the process so far, every thread (seconds).
+double processCpuSeconds() {
+    rusage ru{};
+    getrusage(RUSAGE_SELF, &ru);
+    return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
 // The chunks of the window around `c` that the space has.
 std::vector<ChunkCoord> windowChunks(const SpaceSource& source, ChunkCoord c) {
     const Neighbours& n = source.settings().neighbours;
@@ -345,6 +353,7 @@ std::vector<ChunkCoord> windowChunks(const SpaceSource& source, ChunkCoord c) {
 
 Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& progress, std::vector<std::string>& committed) {
     const auto t0 = std::chrono::steady_clock::now();
+    const double cpu0 = processCpuSeconds();
     auto since = [](auto t) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count(); };
     std::unique_ptr<tbb::global_control> threadLimit;
     if (opt.threads > 0)
@@ -399,6 +408,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         result.shard = std::move(sh);
     }
     result.loadSeconds = since(t0);
+    result.loadCpuSeconds = processCpuSeconds() - cpu0;
     if (Status i = interrupted(); !i) return i.error();
 
     // 3. Outputs: never an input, and every one writable before any work is done.

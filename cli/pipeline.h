@@ -89,6 +89,7 @@ struct BakeResult {
     BakeTotals totals;                  // every chunk baked (not those --resume skipped)
     std::vector<StageTiming> stages;    // in pipeline order
     double loadSeconds = 0, writeSeconds = 0, totalSeconds = 0;
+    double loadCpuSeconds = 0;  // CPU time of the process (every thread) until the space was read
     int chunksWritten = 0;
     int chunksResumed = 0;  // skipped by --resume: unchanged since the last bake
     std::vector<std::string> notes;  // what the bake did differently from what was asked
