@@ -341,16 +341,6 @@ double processCpuSeconds() {
     return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
 }
 
-// The chunks of the window around `c` that the space has.
-std::vector<ChunkCoord> windowChunks(const SpaceSource& source, ChunkCoord c) {
-    const Neighbours& n = source.settings().neighbours;
-    std::vector<ChunkCoord> out;
-    for (int dx = -n.left; dx <= n.right; ++dx)
-        for (int dz = -n.bottom; dz <= n.top; ++dz)
-            if (source.chunks().count({c.x + dx, c.z + dz})) out.push_back({c.x + dx, c.z + dz});
-    return out;
-}
-
 Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& progress, std::vector<std::string>& committed) {
     const auto t0 = std::chrono::steady_clock::now();
     const double cpu0 = processCpuSeconds();
@@ -482,21 +472,13 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     if (!runner.status()) return runner.status().error();
 
     result.stages = runner.timings();
-    // The chunks loaded now (those the windows still to bake need), and when each can go:
-    // after the last target whose window holds it.
+    // The chunks loaded now: those the windows still to bake need.
     Space space;
     space.settings = source.settings();
     TerrainMeshes terrainMeshes;
-    std::map<ChunkCoord, size_t> lastUse;
-    for (size_t k = 0; k < targets.size(); ++k)
-        for (ChunkCoord w : windowChunks(source, targets[k])) lastUse[w] = k;
+    WindowSequence windows(source, targets);
     auto release = [&](size_t k) {
-        std::vector<std::shared_ptr<const Mesh>> gone;
-        for (ChunkCoord w : windowChunks(source, targets[k]))
-            if (lastUse[w] == k && space.chunks.count(w)) {
-                std::vector<std::shared_ptr<const Mesh>> g = source.unload(w, space, terrainMeshes);
-                gone.insert(gone.end(), g.begin(), g.end());
-            }
+        const std::vector<std::shared_ptr<const Mesh>> gone = windows.leave(k, space, terrainMeshes);
         if (gone.empty()) return;
         std::unordered_set<const Mesh*> meshes;
         for (const auto& m : gone) meshes.insert(m.get());
@@ -574,10 +556,8 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
                 continue;
             }
         }
-        for (ChunkCoord w : windowChunks(source, targets[k]))
-            if (!space.chunks.count(w))
-                if (Status s = source.load(w, space, result.diagnostics); !s) return stopWith(s.error());
-        result.peakLoadedChunks = std::max(result.peakLoadedChunks, space.chunks.size());
+        if (Status s = windows.enter(k, space, result.diagnostics); !s) return stopWith(s.error());
+        result.peakLoadedChunks = windows.peakLoaded();
         const ChunkFile& cf = space.chunks.at(targets[k]);
         ChunkVerdicts cv;
         {

@@ -330,6 +330,40 @@ std::vector<std::shared_ptr<const Mesh>> SpaceSource::unload(ChunkCoord c, Space
     return gone;
 }
 
+WindowSequence::WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres)
+    : source_(source), centres_(std::move(centres)) {
+    for (size_t k = 0; k < centres_.size(); ++k)
+        for (ChunkCoord c : window(k)) lastUse_[c] = k;
+}
+
+std::vector<ChunkCoord> WindowSequence::window(size_t k) const {
+    const Neighbours& n = source_.settings().neighbours;
+    const ChunkCoord c = centres_[k];
+    std::vector<ChunkCoord> out;
+    for (int dx = -n.left; dx <= n.right; ++dx)
+        for (int dz = -n.bottom; dz <= n.top; ++dz)
+            if (source_.chunks().count({c.x + dx, c.z + dz})) out.push_back({c.x + dx, c.z + dz});
+    return out;
+}
+
+Status WindowSequence::enter(size_t k, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
+    for (ChunkCoord c : window(k))
+        if (!space.chunks.count(c))
+            if (Status s = source_.load(c, space, lateDiagnostics); !s) return s;
+    peak_ = std::max(peak_, space.chunks.size());
+    return Status::ok();
+}
+
+std::vector<std::shared_ptr<const Mesh>> WindowSequence::leave(size_t k, Space& space, TerrainMeshes& terrainMeshes) {
+    std::vector<std::shared_ptr<const Mesh>> gone;
+    for (ChunkCoord c : window(k))
+        if (lastUse_.at(c) == k && space.chunks.count(c)) {
+            std::vector<std::shared_ptr<const Mesh>> g = source_.unload(c, space, terrainMeshes);
+            gone.insert(gone.end(), g.begin(), g.end());
+        }
+    return gone;
+}
+
 std::vector<std::string> Space::inputFiles() const {
     std::set<std::string> files{(fs::path(settings.spaceDir) / "space.xml").string()};
     for (const auto& [coord, cf] : chunks) {

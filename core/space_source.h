@@ -103,4 +103,28 @@ private:
     std::map<std::string, std::shared_ptr<const Heightfield>> liveTerrains_;
 };
 
+// The windows of a bake, one after the other: before window k, the chunks it holds are
+// loaded (those not loaded yet); after it, those no later window holds are dropped. In grid
+// order a bake holds about two columns of the grid at a time, whatever the grid's size.
+class WindowSequence {
+public:
+    // `centres`: the chunks baked, in the order they will be (each window is the centre
+    // and its neighbours that the space has).
+    WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres);
+    // Loads what window k holds into `space` (SpaceSource::load).
+    Status enter(size_t k, Space& space, std::vector<Diagnostic>& lateDiagnostics);
+    // Drops what no window after k holds (SpaceSource::unload); returns the meshes that go,
+    // for the caches keyed by their address to forget first.
+    std::vector<std::shared_ptr<const Mesh>> leave(size_t k, Space& space, TerrainMeshes& terrainMeshes);
+    // The most chunks `space` held at once so far.
+    size_t peakLoaded() const { return peak_; }
+
+private:
+    std::vector<ChunkCoord> window(size_t k) const;
+    SpaceSource& source_;
+    std::vector<ChunkCoord> centres_;
+    std::map<ChunkCoord, size_t> lastUse_;  // the last window holding each chunk
+    size_t peak_ = 0;
+};
+
 }  // namespace shadowcull
