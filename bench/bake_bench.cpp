@@ -1088,8 +1088,10 @@ int main(int argc, char** argv) {
                             count(M->bake.value("peakLoadedChunks", uint64_t(0))).c_str(), mem <= kTargetWindowMemory ? "met" : "NOT met");
                 const double t = XL->wholeBakePerChunk() / M->wholeBakePerChunk();
                 const double cpu = XL->wholeBakeCpuPerChunk() / M->wholeBakeCpuPerChunk();
-                const bool wallMet = std::abs(t - 1) <= kTargetLinearity, cpuMet = std::abs(cpu - 1) <= kTargetLinearity;
-                std::printf("| XL time per chunk within %.0f%% of M's | %.3f (XL %s s, M %s s per chunk; the scan of XL's %s chunk "
+                // One-sided: a world 100 times M's must not make a chunk slower (XL's chunks may
+                // ask for less work than M's: fewer local lights reach its middle).
+                const bool wallMet = t <= 1 + kTargetLinearity, cpuMet = cpu <= 1 + kTargetLinearity;
+                std::printf("| XL time per chunk at most %.0f%% above M's | %.3f (XL %s s, M %s s per chunk; the scan of XL's %s chunk "
                             "files %s s, counted per world chunk); CPU time per chunk the same way: %.3f (XL %s s, M %s s; bits "
                             "past the reach stage per chunk: XL %.0f, M %.0f) | %s |\n",
                             kTargetLinearity * 100, t, seconds(XL->wholeBakePerChunk()).c_str(), seconds(M->wholeBakePerChunk()).c_str(),
