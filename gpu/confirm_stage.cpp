@@ -568,6 +568,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
                 }
                 keepTouching(p.pieces, 0, mask, view);
                 if (p.pieces.empty()) continue;  // no triangle of the sheet reaches the casters
+                if (options_.dropSliverSheets && !holdsWholePixel(p.pieces)) continue;  // it blocks no pixel
                 for (const TriRef& cr : s.cracks) {
                     const auto& ends = work.edges.at(w.objects[cr.object].mesh)->ends[cr.triangle];
                     pb.segment(position(cr.object, ends[0]), position(cr.object, ends[1]), p.pieces);

@@ -60,6 +60,9 @@ struct GpuConfirmOptions {
     // Terrain groups span the whole view and are almost never proved here; leaving them out
     // (they stay undecided, kept) spares a window whose other bits are decided all passes.
     bool includeTerrain = false;
+    // Occluder sheets whose pixel box holds no whole pixel are left out (pixel_cells.h,
+    // holdsWholePixel: they block nothing). false: drawn anyway (tests compare the two).
+    bool dropSliverSheets = true;
 };
 
 // A pixel where the group may be lit with a receiver behind: the light ray through the

@@ -29,6 +29,17 @@ void keepTouching(std::vector<RasterPiece>& pieces, size_t from, const CellMask&
                  pieces.end());
 }
 
+bool holdsWholePixel(const std::vector<RasterPiece>& pieces) {
+    double b[4] = {1e300, 1e300, -1e300, -1e300};
+    for (const RasterPiece& r : pieces) {
+        if (r.misc[2] != 0.0f) continue;  // a crack segment
+        b[0] = std::min(b[0], double(r.box[0])), b[1] = std::min(b[1], double(r.box[1]));
+        b[2] = std::max(b[2], double(r.box[2])), b[3] = std::max(b[3], double(r.box[3]));
+    }
+    const double d = 1e-3 + 1e-6 * std::max({std::abs(b[0]), std::abs(b[1]), std::abs(b[2]), std::abs(b[3])});
+    return std::floor(b[2] + d) - std::ceil(b[0] - d) >= 1 && std::floor(b[3] + d) - std::ceil(b[1] - d) >= 1;
+}
+
 std::array<glm::dvec3, 8> boxCorners(const Aabb& b) {
     std::array<glm::dvec3, 8> c;
     for (int k = 0; k < 8; ++k) c[size_t(k)] = {k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z};

@@ -110,6 +110,17 @@ PixelRect reachOf(const RasterPiece& r, const LightView& v);
 void keepTouching(std::vector<RasterPiece>& pieces, size_t from, const CellMask& mask, const LightView& v,
                   bool behindOnly = false, double bias = 0, double depthEps = 0);
 
+// False when the union of a sheet's triangle pieces (kind 0; those kept for the caster
+// cells) holds no whole pixel square [x, x+1] x [y, y+1] (integers x, y), judged by their
+// pixel box with 1e-3 px to spare for the float rounding of the boxes. Such a sheet blocks
+// no pixel, so leaving it out changes nothing the queries read: a pixel whose square is not
+// inside the union meets the union's boundary, which lies on the sheet's crack edges
+// (confirm_stage.cpp, point 3), so the shader marks it cracked there; and a pixel of a
+// caster cell that lies inside the union has every triangle under it kept, so their box
+// holds it. (Jagged scanned meshes split into thousands of such slivers, each of which
+// needed its own draw-and-resolve batch when it overlapped another.)
+bool holdsWholePixel(const std::vector<RasterPiece>& pieces);
+
 // The corners of a box.
 std::array<glm::dvec3, 8> boxCorners(const Aabb& b);
 
