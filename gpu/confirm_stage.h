@@ -37,7 +37,9 @@
 //
 // Cost: per light and view, the casters' pixels set a region (a bounding rectangle and
 // 8 x 8 pixel cells) outside which nothing is drawn; receivers that lie nowhere behind a
-// caster and occluder sheets that lie nowhere in front of one are left out.
+// caster and occluder sheets that lie nowhere in front of one are left out, and so are
+// sheets whose pixel box holds no whole pixel (they block nothing: pixel_cells.h,
+// holdsWholePixel).
 #pragma once
 
 #include <memory>
