@@ -61,204 +61,17 @@
 #include "core/float_mode.h"
 #include "core/format.h"
 #include "core/light_reach.h"
+#include "gpu/confirm_shaders.h"
 #include "gpu/conservative.h"
 #include "gpu/gl_api.h"
 #include "gpu/light_view.h"
+#include "gpu/pixel_cells.h"
 
 namespace shadowcull::gpu {
 
 namespace {
 
 constexpr float kBig = 1e30f;
-
-// One instance per piece: the vertex shader places the four corners of the shape that
-// covers every pixel the (widened) piece can touch (conservative.h: cover). A geometry
-// shader could build it per point, but llvmpipe runs instanced strips several times faster.
-const char* kRasterVs = R"(#version 430 core
-layout(location = 0) in vec4 aBox;
-layout(location = 1) in vec4 aE0;
-layout(location = 2) in vec4 aE1;
-layout(location = 3) in vec4 aE2;
-layout(location = 4) in vec4 aPlane;
-layout(location = 5) in vec4 aPlane2;
-layout(location = 6) in vec4 aMisc;
-layout(location = 7) in uint aId;
-layout(location = 8) in vec4 aCover01;
-layout(location = 9) in vec4 aCover23;
-flat out vec4 fBox;
-flat out vec4 fE0;
-flat out vec4 fE1;
-flat out vec4 fE2;
-flat out vec4 fPlane;
-flat out vec4 fPlane2;
-flat out vec4 fMisc;
-flat out uint fId;
-uniform vec2 uSize;
-void main() {
-    fBox = aBox; fE0 = aE0; fE1 = aE1; fE2 = aE2; fPlane = aPlane; fPlane2 = aPlane2; fMisc = aMisc; fId = aId;
-    vec2 c = gl_VertexID == 0 ? aCover01.xy : gl_VertexID == 1 ? aCover01.zw : gl_VertexID == 2 ? aCover23.xy : aCover23.zw;
-    gl_Position = vec4(c / uSize * 2.0 - 1.0, 0.0, 1.0);
-}
-)";
-
-const char* kRasterFs = R"(#version 430 core
-flat in vec4 fBox;
-flat in vec4 fE0;
-flat in vec4 fE1;
-flat in vec4 fE2;
-flat in vec4 fPlane;   // x0, y0, s0, a
-flat in vec4 fPlane2;  // b, zmin, zmax, planeValid
-flat in vec4 fMisc;    // dilate, margin, kind
-flat in uint fId;
-uniform int uMode;          // 0 occluder sheet, 1 receivers, 2 caster query (count and record), 3 record only
-uniform bool uPerspective;  // s = 1/z (else s = depth)
-uniform float uDepthEps;    // metres, absolute depth margin
-uniform float uSizeMax;     // view size in pixels (bounds float rounding of coordinates)
-uniform float uBias;        // depth units; already reduced for perspective
-uniform bool uAnyReceiver;  // receivers unknown: every pixel may have one behind
-uniform uint uRecordCap;
-uniform uint uView;
-layout(binding = 0) uniform sampler2D uOcc;
-layout(binding = 1) uniform sampler2D uRecv;
-layout(std430, binding = 0) buffer Counts { uint counts[]; };
-layout(std430, binding = 1) buffer Records { uvec4 records[]; };
-// Per query: which passed pixels to record (threshold on a hash of the pixel; 0xffffffff
-// all, 0 none), the first free record, the records still free, and the fragments offered
-// (pixels under the threshold; all of them are recorded when they fit).
-layout(std430, binding = 2) buffer Slots { uvec4 slots[]; };
-layout(location = 0) out vec4 oValue;
-const float BIG = 1e30;
-
-// Separating axis along one edge normal: the square of half side h around c, widened by
-// m, meets the triangle's extent [lo, hi] along n.
-bool axisOverlaps(vec4 e, vec2 c, float h, float m) {
-    float t = dot(e.xy, c);
-    float r = h * (abs(e.x) + abs(e.y)) + m;
-    return t + r >= e.z && t - r <= e.w;
-}
-
-// Separating axes x, y (the bounding box) and the three edge normals: the square meets the
-// piece (a triangle, or a segment whose third edge has length 0).
-bool overlaps(vec2 c, float h, float m) {
-    float w = h + m;
-    if (c.x + w < fBox.x || c.x - w > fBox.z || c.y + w < fBox.y || c.y - w > fBox.w) return false;
-    return axisOverlaps(fE0, c, h, m) && axisOverlaps(fE1, c, h, m) && axisOverlaps(fE2, c, h, m);
-}
-
-// Point c lies inside the triangle, at least m from each edge's line (and from the
-// parallel through the opposite vertex, which only asks more).
-bool axisInside(vec4 e, vec2 c, float m) {
-    float t = dot(e.xy, c);
-    return min(t - e.z, e.w - t) >= m;
-}
-bool robustInside(vec2 c, float m) { return axisInside(fE0, c, m) && axisInside(fE1, c, m) && axisInside(fE2, c, m); }
-
-// Bounds of the piece's depth over the square of half side h around c: the plane's
-// extremes at the square's corners, clamped by the vertices' range, widened by margins.
-void depthBounds(vec2 c, float h, out float zlo, out float zhi) {
-    zlo = fPlane2.y;
-    zhi = fPlane2.z;
-    if (fPlane2.w > 0.5) {
-        float a = fPlane.w, b = fPlane2.x;
-        vec2 d = c - fPlane.xy;
-        float sc = fPlane.z + a * d.x + b * d.y;
-        float g = abs(a) + abs(b);
-        float spread = g * h;
-        float err = 1e-6 * (abs(fPlane.z) + g * (abs(d.x) + abs(d.y) + h + abs(fPlane.x) + abs(fPlane.y) + uSizeMax));
-        float smin = sc - spread - err, smax = sc + spread + err;
-        if (!uPerspective) {
-            zlo = max(zlo, smin);
-            zhi = min(zhi, smax);
-        } else {
-            if (smax > 0.0) zlo = max(zlo, 1.0 / smax);
-            if (smin > 0.0) zhi = min(zhi, 1.0 / smin);
-        }
-    }
-    zlo -= uDepthEps + 1e-6 * abs(zlo);
-    zhi += uDepthEps + 1e-6 * abs(zhi);
-}
-
-// A fixed hash of the pixel (view, x, y): which pixels are recorded depends on the pixels
-// alone, never on the order in which fragments run.
-uint mix32(uint x) {
-    x ^= x >> 16; x *= 0x7feb352du; x ^= x >> 15; x *= 0x846ca68bu; x ^= x >> 16;
-    return x;
-}
-bool recorded(ivec2 pix) {
-    uint t = slots[fId].x;
-    return t == 0xffffffffu || mix32(uint(pix.x) ^ mix32(uint(pix.y) ^ mix32(uView))) < t;
-}
-
-void main() {
-    vec2 c = gl_FragCoord.xy;
-    float m = fMisc.y;
-    if (uMode == 0) {
-        if (!overlaps(c, 0.5, m)) discard;
-        if (fMisc.z > 0.5) {  // a crack edge touches the pixel: this sheet does not cover it whole
-            oValue = vec4(BIG, 0.0, 0.0, 0.0);
-            return;
-        }
-        float zlo, zhi;
-        depthBounds(c, 0.5 + m, zlo, zhi);
-        // Any point of the square robustly inside suffices (the square meets no crack, so
-        // it lies wholly inside the sheet or wholly outside); five points, so that a
-        // centre on an edge shared inside the sheet is not lost.
-        bool inside = robustInside(c, m) || robustInside(c + vec2(0.25, 0.25), m) ||
-                      robustInside(c + vec2(-0.25, 0.25), m) || robustInside(c + vec2(0.25, -0.25), m) ||
-                      robustInside(c + vec2(-0.25, -0.25), m);
-        oValue = vec4(zhi, inside ? 1.0 : 0.0, 0.0, 0.0);
-    } else if (uMode == 1) {
-        float h = 0.5 + fMisc.x;
-        if (!overlaps(c, h, m)) discard;
-        float zlo, zhi;
-        depthBounds(c, h + m, zlo, zhi);
-        oValue = vec4(zhi, 0.0, 0.0, 0.0);
-    } else {
-        oValue = vec4(0.0);
-        if (!overlaps(c, 0.5, m)) return;
-        float zlo, zhi;
-        depthBounds(c, 0.5 + m, zlo, zhi);
-        ivec2 pix = ivec2(c);
-        float occ = texelFetch(uOcc, pix, 0).r;
-        float rec = texelFetch(uRecv, pix, 0).r;
-        bool lit = zlo <= occ;
-        bool behind = uAnyReceiver || rec > zlo + uBias;
-        if (uMode == 2 && lit) atomicAdd(counts[2u * fId], 1u);
-        if (lit && behind) {
-            if (uMode == 2) atomicAdd(counts[2u * fId + 1u], 1u);
-            if (recorded(pix)) {
-                uint k = atomicAdd(slots[fId].w, 1u);
-                if (k < slots[fId].z)
-                    records[fId * uRecordCap + slots[fId].y + k] = uvec4(uint(pix.x), uint(pix.y), floatBitsToUint(zlo), uView);
-            }
-        }
-    }
-}
-)";
-
-// The sheets' pixel rectangles, as two triangles each (pixel coordinates).
-const char* kRectVs = R"(#version 430 core
-layout(location = 0) in vec2 aPix;
-uniform vec2 uSize;
-void main() { gl_Position = vec4(aPix / uSize * 2.0 - 1.0, 0.0, 1.0); }
-)";
-
-// A sheet's pixel counts when a point of it was robustly inside and no crack touched it.
-const char* kResolveFs = R"(#version 430 core
-layout(binding = 0) uniform sampler2D uWork;
-layout(location = 0) out vec4 oValue;
-void main() {
-    vec2 v = texelFetch(uWork, ivec2(gl_FragCoord.xy), 0).rg;
-    if (v.g < 0.5 || v.r >= 1e29) discard;
-    oValue = vec4(v.r, 0.0, 0.0, 1.0);
-}
-)";
-
-// Resets the work buffer where a batch drew (no blending).
-const char* kClearFs = R"(#version 430 core
-layout(location = 0) out vec4 oValue;
-void main() { oValue = vec4(-1e30, 0.0, 0.0, 0.0); }
-)";
 
 struct UnionFind {
     std::vector<uint32_t> parent;
@@ -287,139 +100,6 @@ struct Sheet {
 struct Caster {
     uint32_t object, triangle, id;
 };
-
-// Pixels [x0, x1) x [y0, y1).
-struct PixelRect {
-    int x0, y0, x1, y1;
-    static PixelRect empty() { return {INT32_MAX, INT32_MAX, INT32_MIN, INT32_MIN}; }
-    bool isEmpty() const { return x0 >= x1 || y0 >= y1; }
-    void add(const PixelRect& o) {
-        x0 = std::min(x0, o.x0), y0 = std::min(y0, o.y0), x1 = std::max(x1, o.x1), y1 = std::max(y1, o.y1);
-    }
-    PixelRect intersect(const PixelRect& o) const {
-        return {std::max(x0, o.x0), std::max(y0, o.y0), std::min(x1, o.x1), std::min(y1, o.y1)};
-    }
-    bool overlaps(const PixelRect& o) const { return !intersect(o).isEmpty(); }
-};
-
-// The pixels a piece's fragments can reach: those whose square, widened by the piece's
-// dilation and margin, meets its bounding box (which holds the shape drawn), clamped to the
-// view, with a pixel to spare.
-PixelRect reachOf(const RasterPiece& r, const LightView& v) {
-    const double h = 0.5 + double(r.misc[0]) + double(r.misc[1]) + 0.01 + 1.0;
-    const double lx = double(r.box[0]) - h, ly = double(r.box[1]) - h;
-    const double hx = double(r.box[2]) + h, hy = double(r.box[3]) + h;
-    return {int(std::clamp(std::floor(lx), 0.0, double(v.width))), int(std::clamp(std::floor(ly), 0.0, double(v.height))),
-            int(std::clamp(std::ceil(hx), 0.0, double(v.width))), int(std::clamp(std::ceil(hy), 0.0, double(v.height)))};
-}
-
-// The pixels the casters can reach, on a grid of 8 x 8 pixel cells, with a summed-area
-// table so that "does this rectangle meet a marked cell" is O(1), and per cell the depth
-// range of the casters there. The other passes are read only at the casters' pixels:
-// pieces that cannot touch a marked cell are dropped, and so are receivers that lie
-// nowhere behind a caster and occluder sheets that lie nowhere in front of one.
-class CellMask {
-public:
-    CellMask(int width, int height, bool all)
-        : nx_((width + kCell - 1) / kCell), ny_((height + kCell - 1) / kCell),
-          sum_(size_t(nx_ + 1) * size_t(ny_ + 1), 0), marked_(size_t(nx_) * size_t(ny_), all ? 1 : 0),
-          zmin_(marked_.size(), all ? -1e300 : 1e300), zmax_(marked_.size(), all ? 1e300 : -1e300) {}
-    void mark(const PixelRect& r, double zmin, double zmax) {
-        if (r.isEmpty()) return;
-        for (int y = r.y0 / kCell; y <= (r.y1 - 1) / kCell && y < ny_; ++y)
-            for (int x = r.x0 / kCell; x <= (r.x1 - 1) / kCell && x < nx_; ++x) {
-                const size_t k = size_t(y) * size_t(nx_) + size_t(x);
-                marked_[k] = 1;
-                zmin_[k] = std::min(zmin_[k], zmin);
-                zmax_[k] = std::max(zmax_[k], zmax);
-            }
-    }
-    void finish() {
-        for (int y = 0; y < ny_; ++y)
-            for (int x = 0; x < nx_; ++x)
-                at(x + 1, y + 1) = marked_[size_t(y) * size_t(nx_) + size_t(x)] + at(x, y + 1) + at(x + 1, y) - at(x, y);
-    }
-    bool touches(const PixelRect& r) const {
-        int x0, y0, x1, y1;
-        if (!cells(r, x0, y0, x1, y1)) return false;
-        return at(x1, y1) - at(x0, y1) - at(x1, y0) + at(x0, y0) > 0;
-    }
-    // The casters' depth range over the marked cells of r (for large r, everything).
-    void depthRange(const PixelRect& r, double& zmin, double& zmax) const {
-        zmin = 1e300, zmax = -1e300;
-        int x0, y0, x1, y1;
-        if (!cells(r, x0, y0, x1, y1)) return;
-        if (int64_t(x1 - x0) * int64_t(y1 - y0) > 1024) {
-            zmin = -1e300, zmax = 1e300;
-            return;
-        }
-        for (int y = y0; y < y1; ++y)
-            for (int x = x0; x < x1; ++x) {
-                const size_t k = size_t(y) * size_t(nx_) + size_t(x);
-                if (!marked_[k]) continue;
-                zmin = std::min(zmin, zmin_[k]);
-                zmax = std::max(zmax, zmax_[k]);
-            }
-    }
-
-private:
-    static constexpr int kCell = 8;
-    bool cells(const PixelRect& r, int& x0, int& y0, int& x1, int& y1) const {
-        if (r.isEmpty()) return false;
-        x0 = r.x0 / kCell, y0 = r.y0 / kCell;
-        x1 = std::min(nx_, (r.x1 - 1) / kCell + 1), y1 = std::min(ny_, (r.y1 - 1) / kCell + 1);
-        return x0 < x1 && y0 < y1;
-    }
-    uint32_t& at(int x, int y) { return sum_[size_t(y) * size_t(nx_ + 1) + size_t(x)]; }
-    uint32_t at(int x, int y) const { return sum_[size_t(y) * size_t(nx_ + 1) + size_t(x)]; }
-    int nx_, ny_;
-    std::vector<uint32_t> sum_;
-    std::vector<uint8_t> marked_;
-    std::vector<double> zmin_, zmax_;
-};
-
-// Drops the pieces that cannot touch a cell the casters reach, and with `behindOnly`
-// (receivers) those whose farthest depth cannot exceed the nearest caster depth there by
-// the bias: they can never pass the query's test. `depthEps` is the shader's absolute
-// depth margin; the relative terms cover its relative margin and float rounding, twice.
-void keepTouching(std::vector<RasterPiece>& pieces, size_t from, const CellMask& mask, const LightView& v,
-                  bool behindOnly = false, double bias = 0, double depthEps = 0) {
-    pieces.erase(std::remove_if(pieces.begin() + std::ptrdiff_t(from), pieces.end(),
-                                [&](const RasterPiece& r) {
-                                    const PixelRect reach = reachOf(r, v);
-                                    if (!mask.touches(reach)) return true;
-                                    if (!behindOnly) return false;
-                                    double zmin, zmax;
-                                    mask.depthRange(reach, zmin, zmax);
-                                    const double far = double(r.plane2[2]);
-                                    return far + 2 * depthEps + 1e-5 * std::abs(far) <
-                                           zmin - 2 * depthEps - 1e-5 * std::abs(zmin) + bias;
-                                }),
-                 pieces.end());
-}
-
-// The corners of a box.
-std::array<glm::dvec3, 8> boxCorners(const Aabb& b) {
-    std::array<glm::dvec3, 8> c;
-    for (int k = 0; k < 8; ++k) c[size_t(k)] = {k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z};
-    return c;
-}
-
-// A pixel rectangle holding reachOf() of every piece the builder makes from a triangle or
-// segment within the convex hull of `pts`, with a dilation up to `dilatePx`; nothing when
-// the hull cannot be bounded so. reachOf widens a piece's box by 1.51 px + dilation +
-// margin (below 1e-3 + 1e-6 (|coordinates| + size)); one pixel more covers the float
-// rounding of the box and of clipped vertices.
-std::optional<PixelRect> hullReach(const glm::dvec3* pts, size_t n, const PieceBuilder& pb, float dilatePx) {
-    const int width = pb.view().width, height = pb.view().height;
-    double b[4];
-    if (!pb.hullBounds(pts, n, b)) return std::nullopt;
-    const double maxAbs = std::max({std::abs(b[0]), std::abs(b[1]), std::abs(b[2]), std::abs(b[3])});
-    const double h = 2.52 + double(dilatePx) + 1e-3 + 2e-6 * (maxAbs + std::max(width, height));
-    auto clampTo = [](double v, int hi) { return int(std::clamp(v, 0.0, double(hi))); };
-    return PixelRect{clampTo(std::floor(b[0] - h), width), clampTo(std::floor(b[1] - h), height),
-                     clampTo(std::ceil(b[2] + h), width), clampTo(std::ceil(b[3] + h), height)};
-}
 
 // One light view's set-up: the casters' pieces and the cells they reach.
 struct ViewPrep {
@@ -464,7 +144,7 @@ struct GpuConfirmStage::Gl {
     GLuint raster = 0, resolve = 0, clear = 0;
     RenderTarget work, occ, recv;
     GLuint vao = 0, vbo = 0, rectVao = 0, rectVbo = 0;
-    GLuint ssbo[3] = {0, 0, 0};  // counts, records, slots (see kRasterFs)
+    GLuint ssbo[3] = {0, 0, 0};  // counts, records, slots (see kConfirmRasterFs)
     GLint64 maxStorageBlock = 0;  // bytes, GL_MAX_SHADER_STORAGE_BLOCK_SIZE
 };
 
@@ -497,13 +177,13 @@ Status GpuConfirmStage::ensureGl() {
     if (!s) return s.error();
     g->session = std::move(*s);
     const GlApi& gl = g->session->gl;
-    Expected<GLuint> raster = gl.program(kRasterVs, nullptr, kRasterFs);
+    Expected<GLuint> raster = gl.program(kConfirmRasterVs, nullptr, kConfirmRasterFs);
     if (!raster) return raster.error();
     g->raster = *raster;
-    Expected<GLuint> resolve = gl.program(kRectVs, nullptr, kResolveFs);
+    Expected<GLuint> resolve = gl.program(kConfirmRectVs, nullptr, kConfirmResolveFs);
     if (!resolve) return resolve.error();
     g->resolve = *resolve;
-    Expected<GLuint> clear = gl.program(kRectVs, nullptr, kClearFs);
+    Expected<GLuint> clear = gl.program(kConfirmRectVs, nullptr, kConfirmClearFs);
     if (!clear) return clear.error();
     g->clear = *clear;
     Expected<RenderTarget> work = makeRenderTarget(gl, res, res, {GL_RG32F}, false);
@@ -816,7 +496,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(Q * cap * 16), nullptr, GL_DYNAMIC_COPY);
         gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
     }
-    // Which passed pixels are recorded (Slots in kRasterFs). The shader's atomics hand out
+    // Which passed pixels are recorded (Slots in kConfirmRasterFs). The shader's atomics hand out
     // record slots in the order the rasteriser's threads run the fragments, so when a
     // query's fragments do not all fit, "the first ones" would differ from run to run (and
     // with them the dense witness search and the results JSON). Instead, per view, every
@@ -892,6 +572,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
                 }
                 keepTouching(p.pieces, 0, mask, view);
                 if (p.pieces.empty()) continue;  // no triangle of the sheet reaches the casters
+                if (options_.dropSliverSheets && !holdsWholePixel(p.pieces)) continue;  // it blocks no pixel
                 for (const TriRef& cr : s.cracks) {
                     const auto& ends = work.edges.at(w.objects[cr.object].mesh)->ends[cr.triangle];
                     pb.segment(position(cr.object, ends[0]), position(cr.object, ends[1]), p.pieces);

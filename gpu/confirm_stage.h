@@ -37,7 +37,9 @@
 //
 // Cost: per light and view, the casters' pixels set a region (a bounding rectangle and
 // 8 x 8 pixel cells) outside which nothing is drawn; receivers that lie nowhere behind a
-// caster and occluder sheets that lie nowhere in front of one are left out.
+// caster and occluder sheets that lie nowhere in front of one are left out, and so are
+// sheets whose pixel box holds no whole pixel (they block nothing: pixel_cells.h,
+// holdsWholePixel).
 #pragma once
 
 #include <memory>
@@ -60,6 +62,9 @@ struct GpuConfirmOptions {
     // Terrain groups span the whole view and are almost never proved here; leaving them out
     // (they stay undecided, kept) spares a window whose other bits are decided all passes.
     bool includeTerrain = false;
+    // Occluder sheets whose pixel box holds no whole pixel are left out (pixel_cells.h,
+    // holdsWholePixel: they block nothing). false: drawn anyway (tests compare the two).
+    bool dropSliverSheets = true;
 };
 
 // A pixel where the group may be lit with a receiver behind: the light ray through the

@@ -796,26 +796,21 @@ TEST(GpuConfirm, NeverCullsABitWithAWitnessOnRandomWorlds) {
 // count: with it and without it (collectViewStats draws whole views), every examined bit
 // has the same lit and passed sample counts, so the same verdict. Terrain groups included,
 // so that large casters are pruned against too.
-TEST(GpuConfirm, PruningChangesNoCount) {
-    REQUIRE_GL();
-    std::vector<NamedScene> scenes = gpuKnownAnswerScenes();
-    scenes.push_back({"sample", sampleSpace});
-    for (uint64_t seed = 1; seed <= 4; ++seed)
-        scenes.push_back({seed % 2 ? "random" : "gappy", [seed] { return seed % 2 ? randomWorld(seed) : gappyWorld(seed); }});
-    int compared = 0, culled = 0;
+// Runs the stage with options `ao` and with `bo` on a fresh load of each scene, and checks
+// that every examined bit has the same lit and passed sample counts and the same verdict
+// in both; `each` then sees both stages (for more checks). Counts the bits compared and
+// those culled.
+template <class F>
+void expectSameCounts(const std::vector<NamedScene>& scenes, const gpu::GpuConfirmOptions& ao,
+                      const gpu::GpuConfirmOptions& bo, int& compared, int& culled, F each) {
     for (size_t k = 0; k < scenes.size(); ++k) {
         SCOPED_TRACE(std::string(scenes[k].name) + " #" + std::to_string(k));
         const SpaceBuilder b = scenes[k].make();
-        std::unique_ptr<Loaded> pruned = load(b, "pruned" + std::to_string(k)), whole = load(b, "whole" + std::to_string(k));
-        ASSERT_TRUE(pruned && whole);
-        gpu::GpuConfirmOptions o;
-        o.resolution = 128;
-        o.includeTerrain = true;
-        gpu::GpuConfirmStage a(o);
-        o.collectViewStats = true;
-        gpu::GpuConfirmStage c(o);
-        runStage(a, *pruned);
-        runStage(c, *whole);
+        std::unique_ptr<Loaded> la = load(b, "a" + std::to_string(k)), lb = load(b, "b" + std::to_string(k));
+        ASSERT_TRUE(la && lb);
+        gpu::GpuConfirmStage a(ao), c(bo);
+        runStage(a, *la);
+        runStage(c, *lb);
         ASSERT_EQ(a.passedPixels().size(), c.passedPixels().size());
         for (size_t q = 0; q < a.passedPixels().size(); ++q) {
             const gpu::GroupPixels &p = a.passedPixels()[q], &w = c.passedPixels()[q];
@@ -824,13 +819,92 @@ TEST(GpuConfirm, PruningChangesNoCount) {
             ASSERT_EQ(p.light, w.light);
             EXPECT_EQ(p.litSamples, w.litSamples) << "object " << p.object << " group " << p.group << " light " << p.light;
             EXPECT_EQ(p.passedSamples, w.passedSamples) << "object " << p.object << " group " << p.group << " light " << p.light;
-            EXPECT_EQ(pruned->verdicts.at(p.object, p.group, p.light).verdict, whole->verdicts.at(w.object, w.group, w.light).verdict);
+            EXPECT_EQ(la->verdicts.at(p.object, p.group, p.light).verdict, lb->verdicts.at(w.object, w.group, w.light).verdict);
             ++compared;
             culled += p.passedSamples == 0;
         }
+        each(a, c);
     }
+}
+
+TEST(GpuConfirm, PruningChangesNoCount) {
+    REQUIRE_GL();
+    std::vector<NamedScene> scenes = gpuKnownAnswerScenes();
+    scenes.push_back({"sample", sampleSpace});
+    for (uint64_t seed = 1; seed <= 4; ++seed)
+        scenes.push_back({seed % 2 ? "random" : "gappy", [seed] { return seed % 2 ? randomWorld(seed) : gappyWorld(seed); }});
+    gpu::GpuConfirmOptions pruned;
+    pruned.resolution = 128;
+    pruned.includeTerrain = true;
+    gpu::GpuConfirmOptions whole = pruned;
+    whole.collectViewStats = true;
+    int compared = 0, culled = 0;
+    expectSameCounts(scenes, pruned, whole, compared, culled, [](const gpu::GpuConfirmStage&, const gpu::GpuConfirmStage&) {});
     EXPECT_GT(compared, 100);
     EXPECT_GT(culled, 0);
+}
+
+// A dense scanned-looking scene for the GPU stage at 256 px (0.4 m per pixel): jagged
+// sheets of 7,200 triangles (5 cm quads, heights zigzagging by 4 cm), tilted, resting on,
+// sunk into and floating over hilly terrain, with boxes between them; a tilted sun and a
+// lamp. Most triangles are far below a pixel, so the occluder sheets split into slivers.
+SpaceBuilder denseJaggedWorld(uint64_t seed) {
+    DeterministicRng rng(seed * 104729);
+    SpaceBuilder b;
+    auto hills = [](double x, double z) { return 1.5 + 1.2 * std::sin(x / 9.0) * std::cos(z / 11.0); };
+    b.addTerrain(0, 0, 9, hills, 0.0, 3.0);
+    MeshSpec sheet;
+    {
+        const int n = 60;
+        const double cell = 0.05, zig = 0.04;
+        const int g = sheet.addGroup(GroupSpec{});
+        for (int j = 0; j <= n; ++j)
+            for (int i = 0; i <= n; ++i) sheet.addVertex({i * cell, ((i + j) % 2) * zig, j * cell});
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const int a = j * (n + 1) + i, c = a + n + 1;
+                sheet.addTriangle(a, c, a + 1, g);
+                sheet.addTriangle(a + 1, c, c + 1, g);
+            }
+    }
+    b.addMesh("sheet", sheet);
+    b.addMesh("box", MeshSpec::box({0, 0, 0}, {1.5, 1.0, 1.5}));
+    for (int k = 0; k < 10; ++k) {
+        const double x = rng.uniform(35, 65), z = rng.uniform(35, 65);
+        const double ground = b.terrainHeightAt(x, z).value_or(0.0);
+        const int where = rng.below(3);  // resting, sunk, floating
+        const double y = where == 0 ? ground : where == 1 ? ground - rng.uniform(0.1, 0.6) : ground + rng.uniform(0.5, 4);
+        const Affine place = Affine::rotationY(rng.uniform(0, 360));
+        b.addModel(k % 3 == 2 ? "box" : "sheet", place.then(Affine::translation({x, y, z})));
+    }
+    b.addLight(LightSpec::directional("sun", {rng.uniform(-0.5, 0.5), -1, rng.uniform(-0.5, 0.5)}).withBias(0.02));
+    b.addLight(LightSpec::point("lamp", {rng.uniform(45, 55), rng.uniform(6, 9), rng.uniform(45, 55)}, 30).withBias(0.02));
+    return b;
+}
+
+// Sheets that hold no whole pixel block nothing: leaving them out changes no count and no
+// blocked pixel, whole views drawn (on the dense scenes it leaves out many sheets).
+TEST(GpuConfirm, SliverSheetsBlockNothing) {
+    REQUIRE_GL();
+    std::vector<NamedScene> scenes = gpuKnownAnswerScenes();
+    for (uint64_t seed = 1; seed <= 2; ++seed) scenes.push_back({"dense", [seed] { return denseJaggedWorld(seed); }});
+    gpu::GpuConfirmOptions dropped;
+    dropped.resolution = 256;
+    dropped.collectViewStats = true;
+    gpu::GpuConfirmOptions kept = dropped;
+    kept.dropSliverSheets = false;
+    int compared = 0, culled = 0, fewer = 0;
+    expectSameCounts(scenes, dropped, kept, compared, culled, [&](const gpu::GpuConfirmStage& a, const gpu::GpuConfirmStage& c) {
+        ASSERT_EQ(a.viewStats().size(), c.viewStats().size());
+        for (size_t v = 0; v < a.viewStats().size(); ++v) {
+            EXPECT_EQ(a.viewStats()[v].occluderPixels, c.viewStats()[v].occluderPixels) << "view " << v;
+            EXPECT_LE(a.viewStats()[v].occluderSheets, c.viewStats()[v].occluderSheets);
+            fewer += a.viewStats()[v].occluderSheets < c.viewStats()[v].occluderSheets;
+        }
+    });
+    EXPECT_GT(compared, 20);
+    EXPECT_GT(culled, 0);
+    EXPECT_GT(fewer, 0) << "the dense scenes should have sliver sheets";
 }
 
 // The window slides: the stage keeps the edge adjacency of the meshes the window still
