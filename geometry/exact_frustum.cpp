@@ -312,6 +312,11 @@ bool ExactFrustum::degenerate() const { return impl_->degenerate; }
 
 namespace {
 
+// Whether x > 0: 1 certainly, 0 certainly not, -1 not known (intervals only: an interval
+// holding 0, as every vertex that clipping put on the plane has).
+int positive(const FT& x) { return CGAL::sign(x) == CGAL::POSITIVE ? 1 : 0; }
+int positive(const IK::FT& x) { return x.inf() > 0 ? 1 : x.sup() <= 0 ? 0 : -1; }
+
 // True when the convex polygon `poly` (already inside every closed half-space of the
 // frustum) holds a point strictly inside all of `opens`: clipped by their closures, each
 // must keep some vertex strictly inside (then the vertices' mean is inside all of them).
@@ -322,12 +327,20 @@ bool holdsStrictlyInside(std::vector<typename Kn::Point_3> poly, const std::vect
         if (poly.empty()) return false;
     }
     for (const HalfSpaceT<Kn>& h : opens) {
-        bool strictly = false;
-        for (const typename Kn::Point_3& p : poly)
-            if (CGAL::Sign(CGAL::sign(h(p))) == CGAL::POSITIVE) {
+        // One vertex certainly strictly inside is enough, whichever: the vertices clipping
+        // put on h's boundary (exactly 0, an interval around 0) must not stop the search
+        // before it (they sent most fast-path tests of buried rocks to the exact kernel).
+        // None certain but some unknown: the exact kernel decides.
+        bool strictly = false, unknown = false;
+        for (const typename Kn::Point_3& p : poly) {
+            const int s = positive(h(p));
+            if (s == 1) {
                 strictly = true;
                 break;
             }
+            unknown |= s < 0;
+        }
+        if (!strictly && unknown) throw CGAL::Uncertain_conversion_exception("strictly inside: sign not certain");
         if (!strictly) return false;
     }
     return true;
