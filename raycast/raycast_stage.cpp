@@ -334,8 +334,8 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
 }
 
 Status RaycastStage::searchAt(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch> searches,
-                              StageStats& stats) {
-    return search(window, cv, searches, stats, "witness ray where the GPU stage saw samples pass");
+                              StageStats& stats, const char* reason) {
+    return search(window, cv, searches, stats, reason);
 }
 
 Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch>& searches,
@@ -367,6 +367,7 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                 WitnessSearch& task = tasks[ti];
                 const ObjectVerdicts& ov = cv.objects[task.object];
                 const uint32_t object = uint32_t(ov.windowObject);
+                const bool ownSamples = task.targets.empty() && !task.throughReceivers;
                 if (task.targets.empty()) {
                     if (task.throughReceivers && task.light >= 0)
                         task.targets = receiverTargets(window, object, uint32_t(task.group), window.lsLights[size_t(task.light)],
@@ -409,6 +410,11 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                                     " points on them, " + std::to_string(lit) +
                                     " have a clear segment from the light to the group's bounds, and no ray through them "
                                     "has its first opaque hit on the group and a receiver more than the bias behind");
+                    else if (!ownSamples)
+                        addNote(d, "raycast",
+                                "no witness either through " + std::to_string(targets.size()) +
+                                    " points where another stage saw a shadow may fall (" + std::to_string(lit) +
+                                    " with a clear segment from the light to the group's bounds)");
                     else
                         addNote(d, "raycast",
                                 "no witness: of " + std::to_string(targets.size()) + " points on the group, " + std::to_string(lit) +

@@ -59,9 +59,11 @@ public:
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
 
     // A second, denser search where another stage says a witness may be (the pixels that
-    // passed the GPU confirmation): same witness test, other targets.
+    // passed the GPU confirmation, the receivers the shadow volumes reach): same witness
+    // test, other targets.
+    // `reason`: the witness's reason (static text).
     Status searchAt(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch> searches,
-                    StageStats& stats);
+                    StageStats& stats, const char* reason = "witness ray where the GPU stage saw samples pass");
 
 private:
     // `receiverSide`: after `searches`, the receiver-side pass over the bits still undecided.

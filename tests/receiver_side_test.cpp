@@ -2,6 +2,8 @@
 // terrain is a true 1 through a small receiver alone, so that rays through the terrain's
 // own samples miss it and rays through the receivers in its shadow find it.
 
+#include <algorithm>
+
 #include <gtest/gtest.h>
 
 #include "cli/pipeline.h"
@@ -19,11 +21,14 @@ namespace {
 
 constexpr const char* kReceiverSide = "receiver-side";
 
-cli::BakeResult bakeWith(const SpaceBuilder& b, const fs::path& dir, int receiverSamples) {
+// `useGeometry` false: witness rays alone (no proofs of 0, and no rays at the geometry
+// stage's candidates).
+cli::BakeResult bakeWith(const SpaceBuilder& b, const fs::path& dir, int receiverSamples, bool useGeometry = true) {
     b.write(dir.string());
     cli::BakeOptions opt;
     opt.spaceDir = dir.string();
     opt.write = false;
+    opt.useGeometry = useGeometry;
     opt.useGpu = false;  // the GPU stage's dense search could find the witness too
     opt.raycast.receiverSamples = receiverSamples;
     opt.geometry.crossCheckWitnesses = true;  // a witness and a proof of 0 must never meet
@@ -78,7 +83,7 @@ struct Loaded {
 Witness onlyReceiverSideFinds(const SpaceBuilder& b) {
     const ObjectLocation terrain = b.locateObjects().at(SpaceBuilder::terrainKey(0, 0));
     {
-        const cli::BakeResult r = bakeWith(b, freshTestDir("-off") / "space", 0);
+        const cli::BakeResult r = bakeWith(b, freshTestDir("-off") / "space", 0, false);
         const Decision* d = findDecision(r, terrain, 0, 0);
         EXPECT_NE(d, nullptr);
         if (d) EXPECT_EQ(d->verdict, Verdict::Undecided) << d->stage << ": " << d->reason();
@@ -105,6 +110,23 @@ TEST(ReceiverSide, RidgeShadowOnAStoneIsFoundFromTheStone) {
 TEST(ReceiverSide, PlateInTheTerrainBandIsFound) {
     const Witness w = onlyReceiverSideFinds(plateInTheBand());
     EXPECT_NEAR(w.wsQ.y, -0.005, 1e-3);  // q on the plate, in the band
+}
+
+// Without the receiver-side search, the geometry stage's candidate (the point of the
+// plate its shadow volume reaches) is where the witness ray is aimed next.
+TEST(ReceiverSide, GeometryCandidateIsWhereTheNextWitnessRayGoes) {
+    const SpaceBuilder b = plateInTheBand();
+    const cli::BakeResult r = bakeWith(b, freshTestDir() / "space", 0);
+    const Decision* d = findDecision(r, b.locateObjects().at(SpaceBuilder::terrainKey(0, 0)), 0, 0);
+    ASSERT_NE(d, nullptr);
+    ASSERT_EQ(d->verdict, Verdict::Kept) << d->stage << ": " << d->reason();
+    EXPECT_NE(d->reason().find("shadow volume reaches"), std::string_view::npos) << d->reason();
+    ASSERT_NE(d->witness(), nullptr);
+    EXPECT_NEAR(d->witness()->wsQ.y, -0.005, 1e-3);
+    const auto timing = std::find_if(r.stages.begin(), r.stages.end(),
+                                     [](const cli::StageTiming& t) { return t.name == "raycast (geometry candidates)"; });
+    ASSERT_NE(timing, r.stages.end());
+    EXPECT_EQ(timing->stats.provedKept, 1u);
 }
 
 // Deeper than the tolerance, the plate receives nothing (the terrain rule): no target is
