@@ -171,13 +171,16 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
         std::vector<double> cumulative;               // terrain: by projected area
         uint32_t next = 0;                            // targets taken so far
     };
+    // Scratch kept by the thread (the search calls this once per bit, from TBB tasks).
     std::vector<Source> sources;
-    std::vector<double> weights;
-    std::vector<BandSegment> band;
-    std::vector<double> bandWeights;
-    std::vector<glm::dvec3> placedVertices;
-    std::vector<double> aboveLevel;
-    std::vector<std::array<glm::dvec3, 3>> ground;
+    thread_local std::vector<double> weights, bandWeights, aboveLevel;
+    thread_local std::vector<BandSegment> band;
+    thread_local std::vector<glm::dvec3> placedVertices;
+    thread_local std::vector<signed char> vertexSide;
+    thread_local std::vector<std::array<glm::dvec3, 3>> ground;
+    weights.clear();
+    bandWeights.clear();
+    band.clear();
     for (uint32_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
         const bool terrain = o.kind == ChunkObject::Kind::Terrain;
@@ -214,8 +217,9 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
         }
         // The terrain rule: a model wholly deeper than the tolerance under the ground.
         const bool ruled = w.hasTerrain;
+        std::optional<double> low;  // the lowest ground under the model's box
         if (ruled) {
-            const std::optional<double> low = w.lsTerrainMinOver(o.lsBounds.min.x, o.lsBounds.min.z, o.lsBounds.max.x, o.lsBounds.max.z);
+            low = w.lsTerrainMinOver(o.lsBounds.min.x, o.lsBounds.min.z, o.lsBounds.max.x, o.lsBounds.max.z);
             if (low && o.lsBounds.max.y < *low - tol) continue;
         }
         const double projected = ofp.all ? 1.0 : (ofp.max.x - ofp.min.x) * (ofp.max.y - ofp.min.y);
@@ -237,36 +241,52 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
             const glm::dvec3 r = frame.rayAt(g[0]);
             if (std::abs(glm::dot(r, n)) < 2 * tol * std::abs(n.y) / L.bias) grazing = true;
         }
-        if (!grazing) continue;
+        if (!grazing || !low) continue;
+        // Each vertex above or under the level 3/4 of the tolerance under the ground: by the
+        // ground's range under the box where that settles it (most of a rock's vertices),
+        // else by the ground under the vertex, looked up once (NaN: not yet).
+        double highest = *low;
+        for (const auto& g : ground) highest = std::max({highest, g[0].y, g[1].y, g[2].y});
+        const double level = 0.75 * tol;
         placedVertices.resize(m.positions.size());
-        aboveLevel.resize(m.positions.size());
-        bool crosses = false, known = true;
-        for (size_t v = 0; v < m.positions.size() && known; ++v) {
+        aboveLevel.assign(m.positions.size(), std::numeric_limits<double>::quiet_NaN());
+        std::vector<signed char>& side = vertexSide;
+        side.assign(m.positions.size(), 0);
+        auto lookUp = [&](size_t v) {
+            if (std::isnan(aboveLevel[v])) {
+                const std::optional<double> g = w.lsTerrainHeight(placedVertices[v].x, placedVertices[v].z);
+                aboveLevel[v] = g ? placedVertices[v].y - (*g - level) : std::numeric_limits<double>::infinity();
+            }
+            return aboveLevel[v];
+        };
+        bool up = false, down = false;
+        for (size_t v = 0; v < m.positions.size(); ++v) {
             placedVertices[v] = o.lsTransform.apply(m.positions[v]);
-            const std::optional<double> g = w.lsTerrainHeight(placedVertices[v].x, placedVertices[v].z);
-            if (!g) known = false;
-            else aboveLevel[v] = placedVertices[v].y - (*g - 0.75 * tol);
-            crosses |= v > 0 && (aboveLevel[v] >= 0) != (aboveLevel[0] >= 0);
+            const double y = placedVertices[v].y;
+            side[v] = y > highest ? 1 : y < *low - level ? -1 : lookUp(v) >= 0 ? 1 : -1;
+            (side[v] > 0 ? up : down) = true;
         }
-        if (!known || !crosses) continue;
+        if (!up || !down) continue;
         const size_t firstBand = bandWeights.size();
         double length = 0.0;
         for (size_t t = 0; t < m.triangles.size(); ++t) {
             const auto& i = m.triangles[t];
+            if (side[i[0]] == side[i[1]] && side[i[1]] == side[i[2]]) continue;
             std::array<glm::dvec3, 3> tri = {placedVertices[i[0]], placedVertices[i[1]], placedVertices[i[2]]};
-            const std::array<double, 3> f = {aboveLevel[i[0]], aboveLevel[i[1]], aboveLevel[i[2]]};
-            if ((f[0] >= 0) == (f[1] >= 0) && (f[1] >= 0) == (f[2] >= 0)) continue;
+            const std::array<double, 3> f = {lookUp(i[0]), lookUp(i[1]), lookUp(i[2])};
+            if (!std::isfinite(f[0] + f[1] + f[2])) continue;
             glm::dvec3 n = glm::cross(tri[1] - tri[0], tri[2] - tri[0]) * (o.flipsWinding ? -1.0 : 1.0);
             const double a2 = glm::length(n);
             if (!(a2 > 0)) continue;
             const double facing = glm::dot(n / a2, frame.rayAt(tri[0]));
             if (!m.groups[m.triangleGroup[t]].twoSided() && !(facing < 0)) continue;
-            std::vector<glm::dvec3> cross;
+            glm::dvec3 cross[3];
+            size_t crossings = 0;
             for (size_t c = 0; c < 3; ++c) {
                 const size_t d = (c + 1) % 3;
-                if ((f[c] >= 0) != (f[d] >= 0)) cross.push_back(tri[c] + (tri[d] - tri[c]) * (f[c] / (f[c] - f[d])));
+                if ((f[c] >= 0) != (f[d] >= 0)) cross[crossings++] = tri[c] + (tri[d] - tri[c]) * (f[c] / (f[c] - f[d]));
             }
-            if (cross.size() != 2) continue;
+            if (crossings != 2) continue;
             const double l = glm::length(cross[1] - cross[0]) * std::abs(facing) + 1e-12;
             band.push_back({cross[0], cross[1]});
             bandWeights.push_back(l);
