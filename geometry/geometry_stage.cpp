@@ -341,11 +341,17 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 const LightGeometry& lg = lightGeom[size_t(l)];
                 const ReceiverRules& rl = *rules[size_t(l)];
                 const bool local = L.type != LightType::Directional;
+                // The smallest bias the receiver rules give any receiver (a lower bound).
+                const double leastBias = std::max(0.0, L.bias * (1 - 1e-9) - 1e-12);
                 // Calls test(k, tri) for the receivers of the window the query may reach
                 // (both levels of the broad phase), until it returns true.
-                auto forReceivers = [&](const ShadowQuery& q, const Aabb& qBox, const auto& test) {
+                // `objectMay(k)`: false when no receiver of object k can be behind (then its
+                // mesh tree is not walked).
+                auto forReceivers = [&](const ShadowQuery& q, const Aabb& qBox, const auto& test,
+                                        const auto& objectMay) {
                     return objectTree.visit([&](const Aabb& b) { return overlaps(b, qBox) && q.mayHold(b); },
                                             [&](uint32_t k) {
+                                                if (!objectMay(k)) return false;
                                                 const WindowObject& o = window.objects[k];
                                                 // Range is a distance: every triangle of a box beyond it is too.
                                                 if (local && boxBeyondRange(L, o.lsBounds)) return false;
@@ -434,7 +440,19 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     // Point and spot lights: the whole window. The receiver rules exclude only
                     // receivers wholly beyond range, and the exact test does not bound the
                     // frustum by range, so a range-bounded box would prove more than they do.
-                    if (!exhaustive) return forReceivers(*query, local ? limits : frustumBox(t, L, limits, margin), test);
+                    // An object whose box (a model's from the lowest ground under it, the
+                    // terrain rule) lies wholly in front of the caster by the smallest bias any
+                    // receiver gets holds no receiver behind it: a half-buried rock beside a
+                    // terrain triangle whose column meets only its buried half.
+                    auto objectMay = [&](uint32_t k) {
+                        const Aabb& b = objectBoxes[k];
+                        const glm::dvec3 corners[8] = {
+                            {b.min.x, b.min.y, b.min.z}, {b.max.x, b.min.y, b.min.z}, {b.min.x, b.max.y, b.min.z},
+                            {b.max.x, b.max.y, b.min.z}, {b.min.x, b.min.y, b.max.z}, {b.max.x, b.min.y, b.max.z},
+                            {b.min.x, b.max.y, b.max.z}, {b.max.x, b.max.y, b.max.z}};
+                        return !filter.allInFront(corners, 8, leastBias);
+                    };
+                    if (!exhaustive) return forReceivers(*query, local ? limits : frustumBox(t, L, limits, margin), test, objectMay);
                     for (uint32_t k = 0; k < window.objects.size() && !candidate; ++k) {
                         const Mesh& m = *window.objects[k].mesh;
                         for (uint32_t tri = 0; tri < m.triangles.size(); ++tri) {
@@ -469,11 +487,14 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                             // Subtrees may run on other TBB threads: gradual underflow there too.
                             const FloatModeScope ieeeHere(FloatModeScope::Underflow::Gradual);
                             const ShadowQuery cq = ShadowQuery::ofCluster(msBox, wo.lsTransform, lg, L.filterRadius, margin);
-                            return forReceivers(cq, local ? limits : cq.columnBox(L, limits), [&](uint32_t k, uint32_t tri) {
-                                std::optional<Receiver> made;
-                                const double beta = receiver(k, tri, made);
-                                return beta >= 0 && !cq.clusterMisses(made->tri, beta);
-                            });
+                            return forReceivers(
+                                cq, local ? limits : cq.columnBox(L, limits),
+                                [&](uint32_t k, uint32_t tri) {
+                                    std::optional<Receiver> made;
+                                    const double beta = receiver(k, tri, made);
+                                    return beta >= 0 && !cq.clusterMisses(made->tri, beta);
+                                },
+                                [](uint32_t) { return true; });
                         },
                         [&](uint32_t tri, uint32_t position) {
                             if (cm.triangleGroup[tri] != uint32_t(task.group)) return;
