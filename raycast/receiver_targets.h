@@ -34,9 +34,11 @@ bool isLargeCaster(const WindowObject& object, uint32_t group, int areaSamples, 
 // to objects by the square root of their projected area (a 1 m rock in a terrain's shadow
 // column gets a few, where its share by area would be a few in a thousand) and within an
 // object by projected area; those deeper than the terrain tolerance under the terrain
-// (non-terrain receivers: the terrain rule) are left out. Every fourth point lies
-// in the terrain band of receivers that cross the ground (the 1 cm under the surface the
-// rule lets receive), when there are such. The caster's own triangles count as receivers (a ridge
+// (non-terrain receivers: the terrain rule) are left out. Every other point lies in the
+// terrain band of models that cross the ground (the 1 cm under the surface the rule lets
+// receive), on their triangles facing the light, when there are such: only where the
+// light grazes the ground enough that a band point can be more than the bias behind the
+// surface (sin of the angle under 2 tolerance / bias). The caster's own triangles count as receivers (a ridge
 // of a terrain shading its own valley). Deterministic: same window, same points.
 // `samples` gives the models' points (their own witness samples, placed).
 std::vector<glm::dvec3> receiverTargets(const BakeWindow& window, uint32_t object, uint32_t group, const Light& light,
