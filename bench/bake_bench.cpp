@@ -395,9 +395,15 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
             for (size_t k = 0; k < ov.decisions.size(); ++k) {
                 const Decision& d = ov.decisions[k];
                 auto& m = perLight[k % nl];
-                if (d.verdict == Verdict::Undecided) ++m["undecided"];
-                else if (d.verdict == Verdict::Kept) ++m["kept"];
-                else ++m["culled:" + std::string(d.stage)];
+                const char* v = d.verdict == Verdict::Undecided ? "undecided" : d.verdict == Verdict::Kept ? "kept" : "culled";
+                if (d.verdict == Verdict::Culled) ++m["culled:" + std::string(d.stage)];
+                else ++m[v];
+                // Issue 19: the terrain's bits, and the shadow-pass triangles left undecided.
+                if (ov.terrain) ++m[std::string("terrain:") + v];
+                const size_t g = k / nl;
+                const uint64_t tris = g < ov.groupTriangles.size() ? ov.groupTriangles[g] : 0;
+                m["triangles"] += tris;
+                if (d.verdict == Verdict::Undecided) m["undecidedTriangles"] += tris;
             }
     };
     long rssFirstChunk = 0, rssMidChunk = 0, rssLastChunk = 0;
@@ -693,15 +699,20 @@ void printBake(const WorldRun& w) {
         std::printf(" **%s input warnings**, first:", count(b["warnings"].get<uint64_t>()).c_str());
         for (const json& m : b["firstWarnings"]) std::printf(" `%s`", m.get<std::string>().c_str());
     }
-    std::printf("\n\n| light | type | proved 1 | proved 0 (by stage) | undecided |\n|---|---|---:|---|---:|\n");
+    std::printf("\n\n| light | type | proved 1 | proved 0 (by stage) | undecided | terrain bits proved 0 / 1 / undecided | "
+                "undecided share of caster triangles |\n|---|---|---:|---|---:|---:|---:|\n");
     for (const json& l : b["lights"]) {
         const json& c = l["counts"];
         std::string culled;
         for (auto it = c.begin(); it != c.end(); ++it)
             if (it.key().rfind("culled:", 0) == 0)
                 culled += (culled.empty() ? "" : ", ") + it.key().substr(7) + " " + count(it.value().get<uint64_t>());
-        std::printf("| %s | %s | %s | %s | %s |\n", l["name"].get<std::string>().c_str(), l["type"].get<std::string>().c_str(),
-                    count(c.value("kept", uint64_t(0))).c_str(), culled.c_str(), count(c.value("undecided", uint64_t(0))).c_str());
+        const uint64_t tris = c.value("triangles", uint64_t(0)), undecidedTris = c.value("undecidedTriangles", uint64_t(0));
+        std::printf("| %s | %s | %s | %s | %s | %s / %s / %s | %s |\n", l["name"].get<std::string>().c_str(),
+                    l["type"].get<std::string>().c_str(), count(c.value("kept", uint64_t(0))).c_str(), culled.c_str(),
+                    count(c.value("undecided", uint64_t(0))).c_str(), count(c.value("terrain:culled", uint64_t(0))).c_str(),
+                    count(c.value("terrain:kept", uint64_t(0))).c_str(), count(c.value("terrain:undecided", uint64_t(0))).c_str(),
+                    tris ? fmt("%.2f %%", 100.0 * double(undecidedTris) / double(tris)).c_str() : "");
     }
 }
 

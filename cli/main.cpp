@@ -139,6 +139,11 @@ int main(int argc, char** argv) {
     bake->add_option("--samples", opt.raycast.areaSamples, "Area samples per group and light for witness rays")
         ->check(within(1, 1 << 20))
         ->capture_default_str();
+    bake->add_option("--receiver-samples", opt.raycast.receiverSamples,
+                     "Points on the receivers in a large caster's shadow (terrain...) per bit its own samples leave "
+                     "undecided (0: off)")
+        ->check(within(0, 1 << 20))
+        ->capture_default_str();
     std::vector<std::string> stageNames{"raycast", "geometry", "gpu"};
     bake->add_option("--stages", stageNames, "Stages after the input/reach checks (default: raycast,geometry,gpu)")
         ->delimiter(',')

@@ -109,6 +109,27 @@ std::vector<raycast::WitnessSearch> denseSearches(const std::vector<gpu::GroupPi
     return out;
 }
 
+// Targets for a witness search where the geometry stage could not exclude a receiver: the
+// point of it the shadow volume reaches, and four more 2 mm to its sides across the light
+// (the point is rounded; a sliver of the terrain band is ~1 cm thick).
+std::vector<raycast::WitnessSearch> candidateSearches(const std::vector<geometry::GeometryStage::Candidate>& candidates,
+                                                      const BakeWindow& window, const ChunkVerdicts& cv) {
+    std::vector<raycast::WitnessSearch> out;
+    for (const geometry::GeometryStage::Candidate& c : candidates) {
+        if (cv.at(c.object, c.group, c.light).verdict != Verdict::Undecided) continue;
+        const Light& L = window.lsLights[size_t(c.light)];
+        const glm::dvec3 d = L.type == LightType::Directional || glm::length(c.lsPoint - L.position) == 0.0
+                                 ? L.direction
+                                 : glm::normalize(c.lsPoint - L.position);
+        const glm::dvec3 u = glm::normalize(std::abs(d.y) < 0.9 ? glm::cross(d, glm::dvec3(0, 1, 0)) : glm::cross(d, glm::dvec3(1, 0, 0)));
+        const glm::dvec3 v = glm::cross(d, u);
+        raycast::WitnessSearch ws{c.object, c.group, c.light, {}};
+        for (const glm::dvec3& off : {glm::dvec3(0.0), 2e-3 * u, -2e-3 * u, 2e-3 * v, -2e-3 * v}) ws.targets.push_back(c.lsPoint + off);
+        out.push_back(std::move(ws));
+    }
+    return out;
+}
+
 // The masks to write for one chunk, in element order. Skipped objects keep their old <shadow>.
 std::vector<ShadowWrite> shadowWrites(const ChunkVerdicts& cv) {
     std::vector<ShadowWrite> out;
@@ -168,6 +189,7 @@ StageRunner::StageRunner(const BakeOptions& opt)
         if (opt.useGeometry) stages_.push_back(&volumes_);
         if (useGpu) stages_.push_back(&confirm_);
     }
+    candidatePass_ = opt.useGeometry && opt.useRaycast && !opt.gpuBaseline;
     densePass_ = useGpu && opt.useRaycast;
     witnessBaselineCulls_ = opt.gpuBaseline && opt.witnessBaselineCulls;
 }
@@ -186,6 +208,7 @@ std::string StageRunner::glDescription() const {
 std::vector<StageTiming> StageRunner::timings() const {
     std::vector<StageTiming> t;
     for (Stage* s : stages_) t.push_back({s->name(), {}});
+    if (candidatePass_) t.push_back({"raycast (geometry candidates)", {}});
     if (densePass_) t.push_back({"raycast (gpu pixels)", {}});
     return t;
 }
@@ -196,6 +219,16 @@ Status StageRunner::bake(const BakeWindow& window, ChunkVerdicts& cv, std::vecto
         StageStats st;
         if (Status status = stages_[s]->run(window, cv, st); !status) return status;
         timings[s].stats.add(st);
+        if (candidatePass_ && stages_[s] == &volumes_) {
+            // Witness rays at the receivers the shadow volumes reach (before the GPU stage:
+            // a bit proved 1 here needs no confirmation).
+            StageStats cs;
+            if (Status status = rays_.searchAt(window, cv, candidateSearches(volumes_.candidates(), window, cv), cs,
+                                               "witness ray at the receiver the shadow volume reaches");
+                !status)
+                return status;
+            timings[stages_.size()].stats.add(cs);
+        }
     }
     if (Status i = interrupted(); !i) return i;
     if (witnessBaselineCulls_) {

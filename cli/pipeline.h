@@ -131,6 +131,7 @@ private:
     gpu::GpuConfirmStage confirm_;
     gpu::GpuBaselineMethod baseline_;
     std::vector<Stage*> stages_;
+    bool candidatePass_ = false;  // witness rays at the geometry stage's candidates
     bool densePass_ = false;
     bool witnessBaselineCulls_ = false;
     uint64_t baselineCullsWitnessed_ = 0;

@@ -312,24 +312,49 @@ bool ExactFrustum::degenerate() const { return impl_->degenerate; }
 
 namespace {
 
+// Whether x > 0: 1 certainly, 0 certainly not, -1 not known (intervals only: an interval
+// holding 0, as every vertex that clipping put on the plane has).
+int positive(const FT& x) { return CGAL::sign(x) == CGAL::POSITIVE ? 1 : 0; }
+int positive(const IK::FT& x) { return x.inf() > 0 ? 1 : x.sup() <= 0 ? 0 : -1; }
+
 // True when the convex polygon `poly` (already inside every closed half-space of the
 // frustum) holds a point strictly inside all of `opens`: clipped by their closures, each
 // must keep some vertex strictly inside (then the vertices' mean is inside all of them).
+// The mean of a polygon's vertices, rounded to double.
+template <class PointT>
+glm::dvec3 meanOf(const std::vector<PointT>& poly) {
+    glm::dvec3 sum(0.0);
+    for (const PointT& p : poly) sum += glm::dvec3(CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z()));
+    return sum / double(poly.size());
+}
+
+// With `inside`: when true, the mean of the clipped polygon's vertices (strictly inside,
+// up to its rounding to double: a place to aim a witness ray at, never a proof).
 template <class Kn>
-bool holdsStrictlyInside(std::vector<typename Kn::Point_3> poly, const std::vector<HalfSpaceT<Kn>>& opens) {
+bool holdsStrictlyInside(std::vector<typename Kn::Point_3> poly, const std::vector<HalfSpaceT<Kn>>& opens,
+                         glm::dvec3* inside = nullptr) {
     for (const HalfSpaceT<Kn>& h : opens) {
         clip(poly, h);
         if (poly.empty()) return false;
     }
     for (const HalfSpaceT<Kn>& h : opens) {
-        bool strictly = false;
-        for (const typename Kn::Point_3& p : poly)
-            if (CGAL::Sign(CGAL::sign(h(p))) == CGAL::POSITIVE) {
+        // One vertex certainly strictly inside is enough, whichever: the vertices clipping
+        // put on h's boundary (exactly 0, an interval around 0) must not stop the search
+        // before it (they sent most fast-path tests of buried rocks to the exact kernel).
+        // None certain but some unknown: the exact kernel decides.
+        bool strictly = false, unknown = false;
+        for (const typename Kn::Point_3& p : poly) {
+            const int s = positive(h(p));
+            if (s == 1) {
                 strictly = true;
                 break;
             }
+            unknown |= s < 0;
+        }
+        if (!strictly && unknown) throw CGAL::Uncertain_conversion_exception("strictly inside: sign not certain");
         if (!strictly) return false;
     }
+    if (inside) *inside = meanOf(poly);
     return true;
 }
 
@@ -338,7 +363,7 @@ bool holdsStrictlyInside(std::vector<typename Kn::Point_3> poly, const std::vect
 // and not more than `tolerance` under its plane (see reachesAboveGround).
 template <class Kn>
 bool aboveGround(const std::vector<typename Kn::Point_3>& poly, const std::vector<HalfSpaceT<Kn>>& opens,
-                 const std::vector<Triangle>& ground, double tolerance) {
+                 const std::vector<Triangle>& ground, double tolerance, glm::dvec3* inside) {
     using P = typename Kn::Point_3;
     using V = typename Kn::Vector_3;
     using N = typename Kn::FT;
@@ -362,7 +387,7 @@ bool aboveGround(const std::vector<typename Kn::Point_3>& poly, const std::vecto
         }
         if (part.empty()) continue;
         clip(part, HalfSpaceT<Kn>{n, v[0], N(tolerance) * n.y()});
-        if (!part.empty() && holdsStrictlyInside<Kn>(part, opens)) return true;
+        if (!part.empty() && holdsStrictlyInside<Kn>(part, opens, inside)) return true;
     }
     return false;
 }
@@ -429,10 +454,12 @@ std::vector<IHalfSpace> ExactFrustum::Impl::iOpens(double beta) const {
     return out;
 }
 
-bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3, 2>* reachedPart) const {
+bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3, 2>* reachedPart,
+                           glm::dvec3* inside) const {
     const Impl& m = *impl_;
     if (m.degenerate) {
         if (reachedPart) *reachedPart = {glm::min(glm::min(r[0], r[1]), r[2]), glm::max(glm::max(r[0], r[1]), r[2])};
+        if (inside) *inside = (r[0] + r[1] + r[2]) / 3.0;
         return true;
     }
     // Fast path: the same steps over intervals. Every interval encloses the exact value of
@@ -443,14 +470,14 @@ bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3
         CGAL::Protect_FPU_rounding<true> upward;
         const std::vector<IK::Point_3> poly = m.iInsideSides(r);
         if (poly.empty()) return false;
-        const bool reached = holdsStrictlyInside<IK>(poly, m.iOpens(beta));
+        const bool reached = holdsStrictlyInside<IK>(poly, m.iOpens(beta), inside);
         if (reached && reachedPart) *reachedPart = boxOf(poly);
         return reached;
     } catch (const CGAL::Uncertain_conversion_exception&) {
     }
     const std::vector<Point> poly = m.insideSides(r);
     if (poly.empty()) return false;
-    const bool reached = holdsStrictlyInside<K>(poly, m.opens(beta));
+    const bool reached = holdsStrictlyInside<K>(poly, m.opens(beta), inside);
     if (reached && reachedPart) *reachedPart = boxOf(poly);
     return reached;
 }
@@ -463,19 +490,22 @@ bool ExactFrustum::reachesExactly(const Triangle& r, double beta) const {
 }
 
 bool ExactFrustum::reachesAboveGround(const Triangle& r, double beta, const std::vector<Triangle>& ground,
-                                      double tolerance) const {
+                                      double tolerance, glm::dvec3* inside) const {
     const Impl& m = *impl_;
-    if (m.degenerate) return true;
+    if (m.degenerate) {
+        if (inside) *inside = (r[0] + r[1] + r[2]) / 3.0;
+        return true;
+    }
     try {  // intervals first, as in reaches()
         CGAL::Protect_FPU_rounding<true> upward;
         const std::vector<IK::Point_3> poly = m.iInsideSides(r);
         if (poly.empty()) return false;
-        return aboveGround<IK>(poly, m.iOpens(beta), ground, tolerance);
+        return aboveGround<IK>(poly, m.iOpens(beta), ground, tolerance, inside);
     } catch (const CGAL::Uncertain_conversion_exception&) {
     }
     const std::vector<Point> poly = m.insideSides(r);
     if (poly.empty()) return false;
-    return aboveGround<K>(poly, m.opens(beta), ground, tolerance);
+    return aboveGround<K>(poly, m.opens(beta), ground, tolerance, inside);
 }
 
 FrustumFilter::FrustumFilter(const Triangle& t, const LightGeometry& light, double dilation) : caster_(t), light_(light) {

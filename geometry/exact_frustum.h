@@ -51,8 +51,11 @@ public:
     // True when some point of `receiver` lies in the frustum with bias `beta` (metres,
     // >= 0; pass a lower bound of the true bias: smaller is conservative). Exact. When
     // true and `reachedPart` is given, it receives a box (rounded outward) holding every
-    // point of the receiver inside the frustum's side half-spaces (for the terrain rule).
-    bool reaches(const Triangle& receiver, double beta, std::array<glm::dvec3, 2>* reachedPart = nullptr) const;
+    // point of the receiver inside the frustum's side half-spaces (for the terrain rule),
+    // and `inside` a point of the receiver in the frustum (rounded to double: where a
+    // witness ray may be aimed, not a proof of anything).
+    bool reaches(const Triangle& receiver, double beta, std::array<glm::dvec3, 2>* reachedPart = nullptr,
+                 glm::dvec3* inside = nullptr) const;
     // The same answer without the interval fast path (every step in the exact kernel): the
     // reference the tests compare the fast path with.
     bool reachesExactly(const Triangle& receiver, double beta) const;
@@ -64,9 +67,10 @@ public:
     // ground triangle would count as receiving, so the caller must also know the part is
     // covered. Where several terrains overlap, a point above any of them counts (the
     // lowest surface decides, as BakeWindow::lsTerrainHeight). Exact; a degenerate ground
-    // triangle makes it answer true (conservative).
+    // triangle makes it answer true (conservative). `inside`, when true: such a point
+    // (rounded to double, as for reaches()).
     bool reachesAboveGround(const Triangle& receiver, double beta, const std::vector<Triangle>& ground,
-                            double tolerance) const;
+                            double tolerance, glm::dvec3* inside = nullptr) const;
 
 private:
     std::unique_ptr<Impl> impl_;

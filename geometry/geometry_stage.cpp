@@ -14,6 +14,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <tuple>
 
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
@@ -73,20 +74,61 @@ bool underTerrain(const BakeWindow& w, const std::array<glm::dvec3, 2>& box, dou
     return ground && box[1].y < *ground - w.terrainTolerance - margin;
 }
 
-// The part of receiver triangle `t` (box `box`) that may be above the terrain or within
-// the tolerance under it: `t` clipped in double to y >= (the lowest surface over its box) -
-// tolerance - margin. Every point of `t` that the terrain rule lets receive lies in the
-// convex hull of the result (the margin covers the clipping's rounding). False when the
-// box is not wholly over terrain (the rule then says nothing).
+// Keeps the part of the convex polygon `poly` where n . (x - o) + k >= -slack (double;
+// `slack` covers the rounding of the clip, so the result holds every point of the exact
+// part: a superset).
+void clipOutward(std::vector<glm::dvec3>& poly, const glm::dvec3& n, const glm::dvec3& o, double k, double slack) {
+    thread_local std::vector<glm::dvec3> out;  // scratch: this runs for every reached receiver
+    out.clear();
+    const size_t count = poly.size();
+    for (size_t i = 0; i < count; ++i) {
+        const glm::dvec3 &p = poly[i], &q = poly[(i + 1) % count];
+        const double fp = glm::dot(n, p - o) + k + slack, fq = glm::dot(n, q - o) + k + slack;
+        if (fp >= 0) out.push_back(p);
+        if ((fp >= 0) != (fq >= 0)) out.push_back(p + (q - p) * (fp / (fp - fq)));
+    }
+    poly.swap(out);
+}
+
+// The part of receiver triangle `t` (box `box`) that the terrain rule lets receive: over
+// each terrain triangle under it, `t` clipped in double to that triangle's vertical prism
+// and to not deeper than the tolerance under its plane, every half-space moved outward by
+// `margin` (metres; far above the clipping's rounding), so that every point of `t` the
+// rule lets receive lies in the convex hull of `out` (a superset: conservative). Empty
+// when `t` lies wholly deeper than the tolerance under the ground. False when `t` is not
+// wholly over terrain (the rule then says nothing). Depends on the receiver alone: the
+// receiver rules compute it once (a rock's crown, not the lowest ground under its box: on
+// a slope that left most of a half-buried rock to the exact test, caster by caster).
 bool partAboveGround(const BakeWindow& w, const Triangle& t, const Aabb& box, double margin, std::vector<glm::dvec3>& out) {
     out.clear();
-    const std::optional<double> ground = w.lsTerrainMinOver(box.min.x, box.min.z, box.max.x, box.max.z);
-    if (!ground) return false;
-    const double level = *ground - w.terrainTolerance - margin;
-    for (int k = 0; k < 3; ++k) {
-        const glm::dvec3 &p = t[size_t(k)], &q = t[size_t((k + 1) % 3)];
-        if (p.y >= level) out.push_back(p);
-        if ((p.y >= level) != (q.y >= level)) out.push_back(p + (q - p) * ((level - p.y) / (q.y - p.y)));
+    thread_local std::vector<Triangle> ground;  // scratch, as the polygon
+    thread_local std::vector<glm::dvec3> poly;
+    ground.clear();
+    if (!w.lsTerrainTrianglesOver(box.min.x, box.min.z, box.max.x, box.max.z, ground)) return false;
+    for (const Triangle& g : ground) {
+        const Aabb gb = triangleBox(g);
+        if (gb.max.x < box.min.x - margin || gb.min.x > box.max.x + margin || gb.max.z < box.min.z - margin ||
+            gb.min.z > box.max.z + margin || box.max.y < gb.min.y - w.terrainTolerance - margin)
+            continue;
+        glm::dvec3 n = glm::cross(g[1] - g[0], g[2] - g[0]);
+        const double len = glm::length(n);
+        if (!(len > 0) || !(std::abs(n.y) > 1e-9 * len)) return false;  // a vertical or degenerate cell: no bound
+        if (n.y < 0) n = -n;
+        n /= len;
+        poly.assign(t.begin(), t.end());
+        // The vertical prism: three half-spaces through the edges, horizontal normals inward.
+        for (int e = 0; e < 3 && !poly.empty(); ++e) {
+            const glm::dvec3 &a = g[size_t(e)], &b = g[size_t((e + 1) % 3)], &c = g[size_t((e + 2) % 3)];
+            glm::dvec3 side = glm::cross(b - a, glm::dvec3(0, 1, 0));
+            const double sl = glm::length(side);
+            if (!(sl > 0)) return false;
+            side /= sl;
+            if (glm::dot(side, c - a) < 0) side = -side;
+            clipOutward(poly, side, a, 0.0, margin);
+        }
+        // Not deeper than the tolerance under the plane: n . (x - g0) + tolerance * n.y >= 0.
+        if (!poly.empty()) clipOutward(poly, n, g[0], w.terrainTolerance * n.y, margin);
+        out.insert(out.end(), poly.begin(), poly.end());
     }
     return true;
 }
@@ -94,49 +136,81 @@ bool partAboveGround(const BakeWindow& w, const Triangle& t, const Aabb& box, do
 // Per receiver triangle (object, triangle) and light, computed on first use (most
 // receivers of a window are never tested; an object's table is made when a query first
 // reaches it): -1 when the receiver rules exclude it, else a lower bound of the bias
-// (metres) that applies to it. Safe to call from several threads: a value is computed
-// again at worst, always the same.
+// (metres) that applies to it; and where the terrain rule applies, the receiver's part
+// above the ground (partAboveGround: once per receiver, not per caster triangle). Safe
+// to call from several threads: a value is computed again at worst, always the same.
 class ReceiverRules {
 public:
-    ReceiverRules(const BakeWindow& w, const Light& L, const LightGeometry& lg, double margin)
-        : w_(w), L_(L), lg_(lg), margin_(margin), tables_(w.objects.size()) {
+    // `bound`: also compute the part above the ground (off for the exhaustive reference,
+    // which uses no double filter beyond the lowest ground under a receiver's box).
+    ReceiverRules(const BakeWindow& w, const Light& L, const LightGeometry& lg, double margin, bool bound)
+        : w_(w), L_(L), lg_(lg), margin_(margin), bound_(bound), tables_(w.objects.size()) {
         for (auto& t : tables_) t.store(nullptr, std::memory_order_relaxed);
     }
     ~ReceiverRules() {
-        for (auto& t : tables_) delete[] t.load(std::memory_order_relaxed);
+        for (size_t k = 0; k < tables_.size(); ++k) {
+            Entry* table = tables_[k].load(std::memory_order_relaxed);
+            if (!table) continue;
+            for (size_t i = 0; i < w_.objects[k].mesh->triangles.size(); ++i) delete table[i].part.load(std::memory_order_relaxed);
+            delete[] table;
+        }
     }
     ReceiverRules(const ReceiverRules&) = delete;
     ReceiverRules& operator=(const ReceiverRules&) = delete;
 
-    // `receiver()` makes the receiver when the value is not known yet.
+    // `receiver()` makes the receiver when the value is not known yet. `above`, when given,
+    // receives the receiver's part above the ground (nullptr: the terrain rule gives no
+    // bound there; check it only when the result is >= 0).
     template <class Make>
-    double beta(uint32_t object, uint32_t triangle, const Make& receiver) const {
-        std::atomic<double>* table = tables_[object].load(std::memory_order_acquire);
+    double beta(uint32_t object, uint32_t triangle, const Make& receiver, const std::vector<glm::dvec3>** above = nullptr) const {
+        Entry* table = tables_[object].load(std::memory_order_acquire);
         if (!table) {
             const size_t n = w_.objects[object].mesh->triangles.size();
-            auto* fresh = new std::atomic<double>[n];
-            for (size_t i = 0; i < n; ++i) fresh[i].store(kUnknown, std::memory_order_relaxed);
+            auto* fresh = new Entry[n];
+            for (size_t i = 0; i < n; ++i) {
+                fresh[i].beta.store(kUnknown, std::memory_order_relaxed);
+                fresh[i].part.store(nullptr, std::memory_order_relaxed);
+            }
             if (tables_[object].compare_exchange_strong(table, fresh, std::memory_order_acq_rel)) table = fresh;
             else delete[] fresh;  // another thread's table won; `table` now holds it
         }
-        double b = table[triangle].load(std::memory_order_relaxed);
+        Entry& e = table[triangle];
+        double b = e.beta.load(std::memory_order_acquire);  // after the part it publishes
         if (b == kUnknown) {
-            b = compute(receiver());
-            table[triangle].store(b, std::memory_order_relaxed);
+            b = compute(receiver(), e);
+            e.beta.store(b, std::memory_order_release);
         }
+        if (above) *above = e.part.load(std::memory_order_acquire);
         return b;
     }
 
 private:
     static constexpr double kUnknown = -2.0;  // every computed value is -1 or >= 0
-    double compute(const Receiver& r) const {
+    struct Entry {
+        std::atomic<double> beta;
+        std::atomic<const std::vector<glm::dvec3>*> part;  // owned; set before beta
+    };
+    double compute(const Receiver& r, Entry& e) const {
         // Facing: a one-sided receiver the light meets from behind or edge-on gets nothing.
         if (!r.twoSided && exactFacing(r.tri, r.mirrored, lg_) <= 0) return -1;
         // Range and cone.
         if (boxBeyondRange(L_, r.box) || boxOutsideCone(L_, r.box)) return -1;
-        // Terrain: wholly deeper than the tolerance under the terrain (terrain itself exempt).
-        if (w_.hasTerrain && !r.terrain && underTerrain(w_, {r.box.min, r.box.max}, margin_)) return -1;
-        // Bias, and for directional lights the slope term (constant over a triangle).
+        // Terrain (terrain itself exempt): wholly deeper than the tolerance under the
+        // lowest ground under its box (cheap), then under the ground triangles over it.
+        if (w_.hasTerrain && !r.terrain) {
+            if (underTerrain(w_, {r.box.min, r.box.max}, margin_)) return -1;
+            if (!bound_) return bias(r);
+            auto part = std::make_unique<std::vector<glm::dvec3>>();
+            if (partAboveGround(w_, r.tri, r.box, margin_, *part)) {
+                if (part->empty()) return -1;
+                const std::vector<glm::dvec3>* expected = nullptr;
+                if (e.part.compare_exchange_strong(expected, part.get(), std::memory_order_acq_rel)) part.release();
+            }
+        }
+        return bias(r);
+    }
+    // The bias, and for directional lights the slope term (constant over a triangle).
+    double bias(const Receiver& r) const {
         double b = L_.bias;
         if (L_.slopeBias > 0 && L_.type == LightType::Directional) {
             glm::dvec3 n = glm::cross(r.tri[1] - r.tri[0], r.tri[2] - r.tri[0]);
@@ -151,7 +225,8 @@ private:
     const Light& L_;
     LightGeometry lg_;
     double margin_;
-    mutable std::vector<std::atomic<std::atomic<double>*>> tables_;
+    bool bound_;
+    mutable std::vector<std::atomic<Entry*>> tables_;
 };
 
 std::string worldPoint(const glm::dvec3& ls, const glm::dvec3& origin) {
@@ -166,6 +241,8 @@ std::string worldBox(const Aabb& b, const glm::dvec3& origin) { return worldPoin
 Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();
     trees_.keepOnly(window.meshes());  // the trees of meshes the window has left
+    candidates_.clear();
+    std::mutex candidatesMutex;
     if (window.skippedObjects > 0) return Status::ok();  // an unloaded object might receive
     const FloatModeScope ieee(FloatModeScope::Underflow::Gradual);  // see the tasks below
 
@@ -199,7 +276,21 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
         // window's cost follows what its undecided casters' shadows can reach, not how many
         // triangles it holds.
         std::vector<Aabb> objectBoxes(window.objects.size());
-        for (size_t k = 0; k < window.objects.size(); ++k) objectBoxes[k] = grown(window.objects[k].lsBounds, margin);
+        for (size_t k = 0; k < window.objects.size(); ++k) {
+            const WindowObject& o = window.objects[k];
+            objectBoxes[k] = grown(o.lsBounds, margin);
+            // The terrain rule, per object: no point of a model deeper than the tolerance
+            // under the lowest ground under its box receives, so its box starts there (a
+            // half-buried rock's box is mostly its buried half, which a terrain triangle's
+            // column meets first). Wholly under: an empty box, never visited.
+            if (exhaustive || !window.hasTerrain || o.kind == ChunkObject::Kind::Terrain) continue;
+            const std::optional<double> ground =
+                window.lsTerrainMinOver(o.lsBounds.min.x, o.lsBounds.min.z, o.lsBounds.max.x, o.lsBounds.max.z);
+            if (!ground) continue;
+            const double level = *ground - window.terrainTolerance - margin;
+            if (objectBoxes[k].max.y < level) objectBoxes[k] = Aabb{};
+            else objectBoxes[k].min.y = std::max(objectBoxes[k].min.y, level);
+        }
         const BoxTree objectTree(objectBoxes);
 
         std::vector<LightGeometry> lightGeom(size_t(cv.lightCount));
@@ -207,7 +298,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
         for (int l = 0; l < cv.lightCount; ++l) {
             const Light& L = window.lsLights[size_t(l)];
             lightGeom[size_t(l)] = LightGeometry{L.type == LightType::Directional, L.direction, L.position};
-            if (lightNeeded[size_t(l)]) rules[size_t(l)] = std::make_unique<ReceiverRules>(window, L, lightGeom[size_t(l)], margin);
+            if (lightNeeded[size_t(l)]) rules[size_t(l)] = std::make_unique<ReceiverRules>(window, L, lightGeom[size_t(l)], margin, !exhaustive);
         }
 
         // Triangle `t` of object `k`, window-local (three distinct mesh vertices: the caller checked).
@@ -250,11 +341,17 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 const LightGeometry& lg = lightGeom[size_t(l)];
                 const ReceiverRules& rl = *rules[size_t(l)];
                 const bool local = L.type != LightType::Directional;
+                // The smallest bias the receiver rules give any receiver (a lower bound).
+                const double leastBias = std::max(0.0, L.bias * (1 - 1e-9) - 1e-12);
                 // Calls test(k, tri) for the receivers of the window the query may reach
                 // (both levels of the broad phase), until it returns true.
-                auto forReceivers = [&](const ShadowQuery& q, const Aabb& qBox, const auto& test) {
+                // `objectMay(k)`: false when no receiver of object k can be behind (then its
+                // mesh tree is not walked).
+                auto forReceivers = [&](const ShadowQuery& q, const Aabb& qBox, const auto& test,
+                                        const auto& objectMay) {
                     return objectTree.visit([&](const Aabb& b) { return overlaps(b, qBox) && q.mayHold(b); },
                                             [&](uint32_t k) {
+                                                if (!objectMay(k)) return false;
                                                 const WindowObject& o = window.objects[k];
                                                 // Range is a distance: every triangle of a box beyond it is too.
                                                 if (local && boxBeyondRange(L, o.lsBounds)) return false;
@@ -265,15 +362,17 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 };
                 // Receiver triangle `tri` of object `k` (three distinct vertices) and its
                 // bias, or -1 when the receiver rules exclude it.
-                auto receiver = [&](uint32_t k, uint32_t tri, std::optional<Receiver>& made) {
-                    const double beta = rl.beta(k, tri, [&]() -> const Receiver& { return *(made = makeReceiver(k, tri)); });
+                auto receiver = [&](uint32_t k, uint32_t tri, std::optional<Receiver>& made,
+                                    const std::vector<glm::dvec3>** above = nullptr) {
+                    const double beta =
+                        rl.beta(k, tri, [&]() -> const Receiver& { return *(made = makeReceiver(k, tri)); }, above);
                     if (beta >= 0 && !made) made = makeReceiver(k, tri);
                     return beta;
                 };
                 // One caster triangle: true when some receiver reaches its frustum (a
                 // candidate), described in `seen`. Safe to run for several triangles at once.
                 uint64_t tested = 0;  // exact tests, as a sequential walk makes them
-                auto castsOnSomething = [&](const Triangle& t, std::string& seen, uint64_t& tests) {
+                auto castsOnSomething = [&](const Triangle& t, std::string& seen, uint64_t& tests, glm::dvec3& seenAt) {
                     bool candidate = false;
                     // Built on the first receiver that passes the broad phase and the rules:
                     // most caster triangles of a dense mesh never need one.
@@ -282,10 +381,10 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     std::optional<ShadowQuery> query;
                     if (!exhaustive) query.emplace(t, lg, L.filterRadius, margin);
                     std::vector<Triangle> ground;  // terrain under a reached part (the terrain rule)
-                    std::vector<glm::dvec3> above;  // a receiver's part above the ground (the terrain rule)
                     auto test = [&](uint32_t k, uint32_t tri) {
                         std::optional<Receiver> made;
-                        const double beta = receiver(k, tri, made);
+                        const std::vector<glm::dvec3>* above = nullptr;  // its part above the ground
+                        const double beta = receiver(k, tri, made, &above);
                         if (beta < 0) return false;
                         const Receiver& r = *made;
                         if (!exhaustive && (query->misses(r.tri) || filter.certainlyMisses(r.tri, beta))) return false;
@@ -293,14 +392,12 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         // deeper than the tolerance lies wholly in front of the caster (a
                         // rock's crown beside a terrain triangle whose column reaches only
                         // its buried side).
-                        if (!exhaustive && window.hasTerrain && !r.terrain &&
-                            partAboveGround(window, r.tri, r.box, margin, above) &&
-                            filter.allInFront(above.data(), above.size(), beta))
-                            return false;
+                        if (!exhaustive && above && filter.allInFront(above->data(), above->size(), beta)) return false;
                         ++tests;
                         if (!frustum) frustum.emplace(t, lg, L.filterRadius);
                         std::array<glm::dvec3, 2> part;
-                        if (!frustum->reaches(r.tri, beta, &part)) return false;
+                        glm::dvec3 at;  // a point of the receiver the shadow reaches (a target for witness rays)
+                        if (!frustum->reaches(r.tri, beta, &part, &at)) return false;
                         // The terrain rule on the part of the receiver the shadow reaches: a
                         // rock half in the ground receives only with its part above ground.
                         // The box of that part against the lowest sample first (cheap), then
@@ -324,10 +421,11 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                                                        part[1].y < gb.min.y - tol - margin;
                                                             }),
                                              ground.end());
-                                if (!frustum->reachesAboveGround(r.tri, beta, ground, tol)) return false;
+                                if (!frustum->reachesAboveGround(r.tri, beta, ground, tol, &at)) return false;
                             }
                         }
                         candidate = true;
+                        seenAt = at;
                         if (candidate) {
                             const WindowObject& ro = window.objects[k];
                             auto corner = [&](const glm::dvec3& p) { return worldPoint(p, window.wsOrigin); };
@@ -342,7 +440,19 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     // Point and spot lights: the whole window. The receiver rules exclude only
                     // receivers wholly beyond range, and the exact test does not bound the
                     // frustum by range, so a range-bounded box would prove more than they do.
-                    if (!exhaustive) return forReceivers(*query, local ? limits : frustumBox(t, L, limits, margin), test);
+                    // An object whose box (a model's from the lowest ground under it, the
+                    // terrain rule) lies wholly in front of the caster by the smallest bias any
+                    // receiver gets holds no receiver behind it: a half-buried rock beside a
+                    // terrain triangle whose column meets only its buried half.
+                    auto objectMay = [&](uint32_t k) {
+                        const Aabb& b = objectBoxes[k];
+                        const glm::dvec3 corners[8] = {
+                            {b.min.x, b.min.y, b.min.z}, {b.max.x, b.min.y, b.min.z}, {b.min.x, b.max.y, b.min.z},
+                            {b.max.x, b.max.y, b.min.z}, {b.min.x, b.min.y, b.max.z}, {b.max.x, b.min.y, b.max.z},
+                            {b.min.x, b.max.y, b.max.z}, {b.max.x, b.max.y, b.max.z}};
+                        return !filter.allInFront(corners, 8, leastBias);
+                    };
+                    if (!exhaustive) return forReceivers(*query, local ? limits : frustumBox(t, L, limits, margin), test, objectMay);
                     for (uint32_t k = 0; k < window.objects.size() && !candidate; ++k) {
                         const Mesh& m = *window.objects[k].mesh;
                         for (uint32_t tri = 0; tri < m.triangles.size(); ++tri) {
@@ -354,6 +464,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 };
                 bool candidate = false;
                 std::string seen;  // the candidate, for the bit's note
+                glm::dvec3 seenAt(0.0);  // and where the shadow reaches it
                 if (!exhaustive) {
                     // The caster's triangles by the clusters of its mesh tree, top down. A cluster whose column no receiver can be behind
                     // (ShadowQuery::ofCluster, clusterMisses) holds no triangle with a
@@ -376,11 +487,14 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                             // Subtrees may run on other TBB threads: gradual underflow there too.
                             const FloatModeScope ieeeHere(FloatModeScope::Underflow::Gradual);
                             const ShadowQuery cq = ShadowQuery::ofCluster(msBox, wo.lsTransform, lg, L.filterRadius, margin);
-                            return forReceivers(cq, local ? limits : cq.columnBox(L, limits), [&](uint32_t k, uint32_t tri) {
-                                std::optional<Receiver> made;
-                                const double beta = receiver(k, tri, made);
-                                return beta >= 0 && !cq.clusterMisses(made->tri, beta);
-                            });
+                            return forReceivers(
+                                cq, local ? limits : cq.columnBox(L, limits),
+                                [&](uint32_t k, uint32_t tri) {
+                                    std::optional<Receiver> made;
+                                    const double beta = receiver(k, tri, made);
+                                    return beta >= 0 && !cq.clusterMisses(made->tri, beta);
+                                },
+                                [](uint32_t) { return true; });
                         },
                         [&](uint32_t tri, uint32_t position) {
                             if (cm.triangleGroup[tri] != uint32_t(task.group)) return;
@@ -388,16 +502,18 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                             const auto& i = cm.triangles[tri];
                             std::string note;
                             uint64_t n = 0;
+                            glm::dvec3 at(0.0);
                             const bool found = castsOnSomething(
                                 {wo.lsTransform.apply(cm.positions[i[0]]), wo.lsTransform.apply(cm.positions[i[1]]),
                                  wo.lsTransform.apply(cm.positions[i[2]])},
-                                note, n);
+                                note, n, at);
                             if (!found && n == 0) return;
                             const std::lock_guard<std::mutex> lock(firstMutex);
                             if (n > 0) testsAt.emplace_back(position, n);
                             if (found && position < first.load()) {
                                 first.store(position);
                                 seen = std::move(note);
+                                seenAt = at;
                             }
                         },
                         first, kParallelCasters);
@@ -406,11 +522,15 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         if (position <= first.load()) tested += n;
                 } else {
                     for (const Triangle& t : casters)
-                        if ((candidate = castsOnSomething(t, seen, tested))) break;
+                        if ((candidate = castsOnSomething(t, seen, tested, seenAt))) break;
                 }
                 tests += tested;
                 if (candidate) {
-                    if (d.verdict == Verdict::Undecided) addNote(d, "geometry", std::move(seen));
+                    if (d.verdict == Verdict::Undecided) {
+                        addNote(d, "geometry", std::move(seen));
+                        const std::lock_guard<std::mutex> lock(candidatesMutex);
+                        candidates_.push_back({task.object, task.group, l, seenAt});
+                    }
                     continue;
                 }
                 if (d.verdict == Verdict::Kept) {  // cross-check mode: a proof against a witness
@@ -425,6 +545,10 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                            " caster triangles; volume within " + worldBox(volume, window.wsOrigin) + ")");
                 ++culled;
             }
+        });
+        // In a fixed order whatever the threads did.
+        std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
+            return std::tie(a.object, a.group, a.light) < std::tie(b.object, b.group, b.light);
         });
         if (contradiction)
             return makeError(ErrorKind::Internal, window.centrePath, 0,

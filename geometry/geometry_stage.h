@@ -7,6 +7,10 @@
 // Shadow volumes: F. C. Crow, "Shadow Algorithms for Computer Graphics", SIGGRAPH 1977.
 #pragma once
 
+#include <vector>
+
+#include <glm/vec3.hpp>
+
 #include "core/stage.h"
 #include "geometry/box_tree.h"
 
@@ -30,12 +34,23 @@ public:
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
     void forgetMeshes(const std::unordered_set<const Mesh*>& meshes) override { trees_.forget(meshes); }
 
+    // The bits of the last window left undecided, each with a point (window-local) of the
+    // candidate receiver its shadow volume reaches (above the ground where the terrain rule
+    // applies): where a witness ray may be aimed (cli/pipeline.cpp does). Sorted.
+    struct Candidate {
+        size_t object = 0;  // index into ChunkVerdicts::objects
+        int group = 0, light = 0;
+        glm::dvec3 lsPoint{0.0};
+    };
+    const std::vector<Candidate>& candidates() const { return candidates_; }
+
     // Meshes whose trees are kept (for tests: the cache follows the window).
     size_t cachedMeshTrees() const { return trees_.size(); }
 
 private:
     GeometryOptions options_;
     MeshTreeCache trees_;  // per unique mesh, kept while windows hold it
+    std::vector<Candidate> candidates_;
 };
 
 }  // namespace shadowcull::geometry

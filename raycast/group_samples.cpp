@@ -7,10 +7,6 @@
 
 namespace shadowcull::raycast {
 
-namespace {
-
-// Van der Corput radical inverse in base 2: 0, 1/2, 1/4, 3/4, ... (each prefix of length
-// 2^k is one point per stratum of width 2^-k).
 double radicalInverse2(uint32_t i) {
     i = (i << 16) | (i >> 16);
     i = ((i & 0x00ff00ffu) << 8) | ((i & 0xff00ff00u) >> 8);
@@ -19,6 +15,8 @@ double radicalInverse2(uint32_t i) {
     i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
     return double(i) * (1.0 / 4294967296.0);
 }
+
+namespace {
 
 struct Tri {
     glm::dvec3 a, b, c;
@@ -97,16 +95,16 @@ std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, 
     return place(object, sampleMeshGroup(*object.mesh, group, areaSamples, maxFeatureSamples));
 }
 
+const std::vector<glm::dvec3>& GroupSampleCache::meshPoints(const Mesh& mesh, uint32_t group) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto key = std::make_pair(&mesh, group);
+    auto it = local_.find(key);
+    if (it == local_.end()) it = local_.emplace(key, sampleMeshGroup(mesh, group, area_, features_)).first;
+    return it->second;  // std::map nodes stay put; entries are never changed again
+}
+
 std::vector<glm::dvec3> GroupSampleCache::placed(const WindowObject& object, uint32_t group) {
-    const std::vector<glm::dvec3>* local = nullptr;
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        auto key = std::make_pair(object.mesh, group);
-        auto it = local_.find(key);
-        if (it == local_.end()) it = local_.emplace(key, sampleMeshGroup(*object.mesh, group, area_, features_)).first;
-        local = &it->second;  // std::map nodes stay put; entries are never changed again
-    }
-    return place(object, *local);
+    return place(object, meshPoints(*object.mesh, group));
 }
 
 void GroupSampleCache::forget(const std::unordered_set<const Mesh*>& meshes) {

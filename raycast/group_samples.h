@@ -12,6 +12,10 @@
 
 namespace shadowcull::raycast {
 
+// Van der Corput radical inverse in base 2: 0, 1/2, 1/4, 3/4, ... (each prefix of length
+// 2^k is one point per stratum of width 2^-k).
+double radicalInverse2(uint32_t i);
+
 // Points on the group's triangles (mesh coordinates), in an order where every prefix is
 // spread over the group: first `areaSamples` points distributed by area (stratified along
 // the cumulative area with a van der Corput sequence, so small triangles such as a 5 mm
@@ -34,6 +38,9 @@ public:
     GroupSampleCache(int areaSamples, int maxFeatureSamples) : area_(areaSamples), features_(maxFeatureSamples) {}
     // The object's group's points, window-local.
     std::vector<glm::dvec3> placed(const WindowObject& object, uint32_t group);
+    // The (mesh, group)'s points in mesh coordinates (a reference that stays valid as long
+    // as the cache: a caller placing only a prefix of them).
+    const std::vector<glm::dvec3>& meshPoints(const Mesh& mesh, uint32_t group);
     size_t meshGroups() const;
     // Drops the points of `meshes` (about to be freed: a later mesh may get the address).
     void forget(const std::unordered_set<const Mesh*>& meshes);

@@ -34,6 +34,7 @@
 #include "core/float_mode.h"
 #include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
+#include "raycast/receiver_targets.h"
 
 namespace shadowcull::raycast {
 
@@ -334,20 +335,20 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
                     searches.push_back({oi, g, -1, {}});
                     break;
                 }
-    return search(window, cv, searches, stats, "witness ray");
+    return search(window, cv, searches, stats, "witness ray", true);
 }
 
 Status RaycastStage::searchAt(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch> searches,
-                              StageStats& stats) {
-    return search(window, cv, searches, stats, "witness ray where the GPU stage saw samples pass");
+                              StageStats& stats, const char* reason) {
+    return search(window, cv, searches, stats, reason);
 }
 
 Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch>& searches,
-                            StageStats& stats, const char* reason) {
+                            StageStats& stats, const char* reason, bool receiverSide) {
     const auto t0 = std::chrono::steady_clock::now();
     Impl& im = *impl_;
     if (!im.device) return makeError(ErrorKind::Internal, "", 0, "Embree device could not be created");
-    if (searches.empty()) return Status::ok();
+    if (searches.empty()) return Status::ok();  // nothing undecided: nothing for the receiver side either
 
     try {
         WindowScene scene = im.scenes->buildWindow(window);
@@ -361,49 +362,98 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                 tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
 
         std::atomic<uint64_t> rays{0}, kept{0}, examined{0};
-        tbb::parallel_for(size_t(0), searches.size(), [&](size_t ti) {
-            // Denormals in traversal cost ~100x per operation; the geometry never needs them.
-            const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);
-            WitnessSearch& task = searches[ti];
-            const ObjectVerdicts& ov = cv.objects[task.object];
-            const uint32_t object = uint32_t(ov.windowObject);
-            if (task.targets.empty()) task.targets = im.samples->placed(window.objects[object], uint32_t(task.group));
-            uint64_t localRays = 0;
-            for (int l = 0; l < cv.lightCount; ++l) {
-                if (task.light >= 0 && l != task.light) continue;
-                Decision& d = cv.at(task.object, task.group, l);
-                if (d.verdict != Verdict::Undecided) continue;
-                ++examined;
-                const Light& L = window.lsLights[size_t(l)];
-                // Targets in packets of 16: an occlusion packet drops those whose line is
-                // blocked before the group (most of them where a bit ends undecided), then
-                // closest hits examine the rest in order until one is a witness.
-                const std::vector<glm::dvec3>& targets = task.targets;
-                bool found = false;
-                size_t lit = 0;
-                for (size_t b = 0; b < targets.size() && !found; b += 16) {
-                    const int count = int(std::min<size_t>(16, targets.size() - b));
-                    bool clear[16];
-                    tracer.clearSegments(L, object, &targets[b], count, clear, &localRays);
-                    for (int k = 0; k < count && !found; ++k) {
-                        if (!clear[k]) continue;
-                        ++lit;
-                        if (std::optional<Witness> wit =
-                                tracer.tryRay(L, object, uint32_t(task.group), targets[b + size_t(k)], &localRays)) {
-                            decide(d, Verdict::Kept, "raycast", reason, std::move(wit));
-                            ++kept;
-                            found = true;
+        // One pass: every search's targets, each light it asks for that is still undecided.
+        // `countExamined`: the bits count once per stage run (the receiver-side pass
+        // examines bits the first one already counted).
+        auto trace = [&](std::vector<WitnessSearch>& tasks, const char* why, bool countExamined) {
+            tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
+                // Denormals in traversal cost ~100x per operation; the geometry never needs them.
+                const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);
+                WitnessSearch& task = tasks[ti];
+                const ObjectVerdicts& ov = cv.objects[task.object];
+                const uint32_t object = uint32_t(ov.windowObject);
+                const bool ownSamples = task.targets.empty() && !task.throughReceivers;
+                if (task.targets.empty()) {
+                    if (task.throughReceivers && task.light >= 0)
+                        task.targets = receiverTargets(window, object, uint32_t(task.group), window.lsLights[size_t(task.light)],
+                                                       im.opt.receiverSamples, *im.samples);
+                    else if (!task.throughReceivers)
+                        task.targets = im.samples->placed(window.objects[object], uint32_t(task.group));
+                }
+                uint64_t localRays = 0;
+                for (int l = 0; l < cv.lightCount; ++l) {
+                    if (task.light >= 0 && l != task.light) continue;
+                    Decision& d = cv.at(task.object, task.group, l);
+                    if (d.verdict != Verdict::Undecided) continue;
+                    if (countExamined) ++examined;
+                    const Light& L = window.lsLights[size_t(l)];
+                    // Targets in packets of 16: an occlusion packet drops those whose line is
+                    // blocked before the group (most of them where a bit ends undecided), then
+                    // closest hits examine the rest in order until one is a witness.
+                    const std::vector<glm::dvec3>& targets = task.targets;
+                    bool found = false;
+                    size_t lit = 0;
+                    for (size_t b = 0; b < targets.size() && !found; b += 16) {
+                        const int count = int(std::min<size_t>(16, targets.size() - b));
+                        bool clear[16];
+                        tracer.clearSegments(L, object, &targets[b], count, clear, &localRays);
+                        for (int k = 0; k < count && !found; ++k) {
+                            if (!clear[k]) continue;
+                            ++lit;
+                            if (std::optional<Witness> wit =
+                                    tracer.tryRay(L, object, uint32_t(task.group), targets[b + size_t(k)], &localRays)) {
+                                decide(d, Verdict::Kept, "raycast", why, std::move(wit));
+                                ++kept;
+                                found = true;
+                            }
                         }
                     }
+                    if (found) continue;
+                    if (task.throughReceivers)
+                        addNote(d, "raycast",
+                                "no witness through the receivers in its shadow either: of " + std::to_string(targets.size()) +
+                                    " points on them, " + std::to_string(lit) +
+                                    " have a clear segment from the light to the group's bounds, and no ray through them "
+                                    "has its first opaque hit on the group and a receiver more than the bias behind");
+                    else if (!ownSamples)
+                        addNote(d, "raycast",
+                                "no witness either through " + std::to_string(targets.size()) +
+                                    " points where another stage saw a shadow may fall (" + std::to_string(lit) +
+                                    " with a clear segment from the light to the group's bounds)");
+                    else
+                        addNote(d, "raycast",
+                                "no witness: of " + std::to_string(targets.size()) + " points on the group, " + std::to_string(lit) +
+                                    " are lit (the light's segment to them is clear), and no ray through them meets a "
+                                    "receiver more than the bias behind");
                 }
-                if (!found)
-                    addNote(d, "raycast",
-                            "no witness: of " + std::to_string(targets.size()) + " points on the group, " + std::to_string(lit) +
-                                " are lit (the light's segment to them is clear), and no ray through them meets a "
-                                "receiver more than the bias behind");
+                rays += localRays;
+            });
+        };
+        trace(searches, reason, true);
+        if (receiverSide && im.opt.receiverSamples > 0) {
+            // The receiver-side pass (receiver_targets.h): the bits of large casters the
+            // group's own samples left undecided, one search per (group, light).
+            std::vector<WitnessSearch> more;
+            for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+                if (cv.objects[oi].windowObject < 0) continue;
+                const WindowObject& o = window.objects[size_t(cv.objects[oi].windowObject)];
+                for (int g = 0; g < cv.objects[oi].groupCount; ++g) {
+                    bool large = false, checked = false;
+                    for (int l = 0; l < cv.lightCount; ++l) {
+                        if (cv.at(oi, g, l).verdict != Verdict::Undecided) continue;
+                        if (!checked) {
+                            large = isLargeCaster(o, uint32_t(g), im.opt.areaSamples, im.opt.largeCasterSpacing);
+                            checked = true;
+                        }
+                        if (!large) break;
+                        WitnessSearch ws{oi, g, l, {}};
+                        ws.throughReceivers = true;
+                        more.push_back(std::move(ws));
+                    }
+                }
             }
-            rays += localRays;
-        });
+            trace(more, "witness ray through a receiver in the group's shadow (receiver-side search)", false);
+        }
         scene.reset();
         stats.raysCast += rays;
         stats.provedKept += kept;

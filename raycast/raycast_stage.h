@@ -22,6 +22,12 @@ struct RaycastOptions {
     int maxFeatureSamples = 1024;  // vertex and edge-midpoint samples per group and light
     int maxHitsPerRay = 48;        // surfaces behind p examined per witness line
     int threads = 0;               // Embree build threads; 0 = all
+    // Receiver-side search (receiver_targets.h): for a bit of a large caster still
+    // undecided after its own samples, up to this many points on the receivers that may lie
+    // in its shadow (0: off). A large caster: a terrain, or a group whose own area samples
+    // are at least `largeCasterSpacing` metres apart.
+    int receiverSamples = 2048;
+    double largeCasterSpacing = 0.5;
 };
 
 // A witness search for one (group, light) — or every undecided light of the group when
@@ -32,6 +38,9 @@ struct WitnessSearch {
     int group = 0;
     int light = -1;
     std::vector<glm::dvec3> targets;
+    // With no targets: aim through the receivers in the group's shadow for `light`
+    // (receiver_targets.h) instead of through the group's own samples.
+    bool throughReceivers = false;
 };
 
 class RaycastStage : public Stage {
@@ -44,18 +53,23 @@ public:
     const char* name() const override { return "raycast"; }
     // Builds the window's Embree scene (meshes once per resource, placed as instances;
     // terrain as triangles), then searches a witness for every undecided bit, in parallel
-    // over groups (TBB; call it inside the task arena that sets the thread count).
+    // over groups (TBB; call it inside the task arena that sets the thread count); then,
+    // for the bits of large casters still undecided, through the receivers in their shadow
+    // (same scene, same witness test).
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
     void forgetMeshes(const std::unordered_set<const Mesh*>& meshes) override;
 
     // A second, denser search where another stage says a witness may be (the pixels that
-    // passed the GPU confirmation): same witness test, other targets.
+    // passed the GPU confirmation, the receivers the shadow volumes reach): same witness
+    // test, other targets.
+    // `reason`: the witness's reason (static text).
     Status searchAt(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch> searches,
-                    StageStats& stats);
+                    StageStats& stats, const char* reason = "witness ray where the GPU stage saw samples pass");
 
 private:
+    // `receiverSide`: after `searches`, the receiver-side pass over the bits still undecided.
     Status search(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch>& searches,
-                  StageStats& stats, const char* reason);
+                  StageStats& stats, const char* reason, bool receiverSide = false);
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

@@ -63,21 +63,31 @@ TEST(Explain, CulledByGeometryShowsTheProof) {
         << r.out;
 }
 
-// An undecided bit says what each stage saw: on the sample, the centre chunk's terrain
-// under the lamp (a real hard case: a candidate receiver, no witness, and a stage that
-// does not examine terrains), so a user can tell it from a proof that is missing. (Under
-// the sun the same terrain is now proved 0 by the exact terrain rule, issue 19.)
+// An undecided bit says what each stage saw: a terrain under a lamp, with a plate 5 mm
+// under the ground (in the terrain band: its shadow volume reaches it, a candidate
+// receiver) and a roof between the lamp and the whole terrain (no point of it is lit, so
+// no witness), so a user can tell it from a proof that is missing (the GPU stage leaves terrains
+// alone). (The sample's terrain
+// under its lamp, this test's scene before, is now proved 1 through a rock's band.)
 TEST(Explain, UndecidedBitSaysWhatEachStageSaw) {
-    const SpaceBuilder b = sampleSpace();
-    const auto where = b.locateObjects();
-    const ExplainRun r = explain(b, "00000000o", "9", 2);
+    SpaceBuilder b;
+    b.addLight(LightSpec::point("lamp", {50, 6, 50}, 100.0));
+    b.addFlatTerrain(0, 0, 0.0);
+    b.addMesh("plate", MeshSpec::quad({-0.15, 0, -0.15}, {-0.15, 0, 0.15}, {0.15, 0, 0.15}, {0.15, 0, -0.15}));
+    b.addModel("plate", Affine::translation({41.3, -0.005, 57.7}));
+    b.addMesh("roof", MeshSpec::quad({-200, 0, -200}, {200, 0, -200}, {200, 0, 200}, {-200, 0, 200}));
+    b.addModel("roof", Affine::translation({50, 5, 50}));
+    const int terrain = b.locateObjects().at(SpaceBuilder::terrainKey(0, 0)).elementIndex;
+    const ExplainRun r = explain(b, "00000000o", std::to_string(terrain), 1);
     ASSERT_EQ(r.code, cli::kExitOk) << r.err;
-    ASSERT_TRUE(has(r.out, "terrain #9")) << r.out;
-    EXPECT_TRUE(has(r.out, "light 2 'lamp' (point): bit 1, undecided, kept as 1 (no stage could decide)\n")) << r.out;
+    ASSERT_TRUE(has(r.out, "terrain #" + std::to_string(terrain))) << r.out;
+    EXPECT_TRUE(has(r.out, "light 1 'lamp' (point): bit 1, undecided, kept as 1 (no stage could decide)\n")) << r.out;
     EXPECT_TRUE(has(r.out, "    raycast: no witness: of ")) << r.out;
     EXPECT_TRUE(has(r.out, "    geometry: could not exclude 00000000o.chunk model #")) << r.out;
     EXPECT_TRUE(has(r.out, "reaches it more than the bias behind, within (")) << r.out;
-    EXPECT_TRUE(has(r.out, "    gpu: not examined: terrains")) << r.out;
+    // The receiver-side search and the rays at the geometry stage's candidate (issue 19).
+    EXPECT_TRUE(has(r.out, "    raycast: no witness through the receivers in its shadow either: of ")) << r.out;
+    EXPECT_TRUE(has(r.out, "    raycast: no witness either through 5 points where another stage saw a shadow may fall")) << r.out;
 }
 
 // The far cube, by element index (models come first in the chunk file), one light only.

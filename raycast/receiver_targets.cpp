@@ -1,0 +1,350 @@
+// Receiver-side targets: see receiver_targets.h. Everything here is in double and only
+// chooses where to aim; the witness test decides (nothing here can make a verdict).
+
+#include "raycast/receiver_targets.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include <glm/geometric.hpp>
+#include <glm/vec2.hpp>
+
+namespace shadowcull::raycast {
+
+namespace {
+
+// The radical inverse in a small prime base (the second and third coordinates of a
+// target, so that they are not correlated with the first, radicalInverse2).
+double radicalInverse(uint32_t i, uint32_t base) {
+    double inv = 1.0 / base, f = inv, r = 0.0;
+    while (i > 0) {
+        r += f * double(i % base);
+        i /= base;
+        f *= inv;
+    }
+    return r;
+}
+
+// The light's rays as a 2D projection and a depth along them: orthographic along the
+// direction for a directional light; for point and spot lights a central projection onto
+// the plane at unit distance along the axis towards the caster (points at or behind the
+// plane through the light have no projection).
+struct LightFrame {
+    bool directional = true;
+    glm::dvec3 position{0.0}, axis{0.0, -1.0, 0.0}, u{1.0, 0.0, 0.0}, v{0.0, 0.0, 1.0};
+
+    LightFrame(const Light& L, const glm::dvec3& towards) {
+        directional = L.type == LightType::Directional;
+        position = L.position;
+        axis = directional ? L.direction : towards - L.position;
+        const double len = glm::length(axis);
+        axis = len > 0 ? axis / len : glm::dvec3(0.0, -1.0, 0.0);
+        u = glm::normalize(std::abs(axis.y) < 0.9 ? glm::cross(axis, glm::dvec3(0, 1, 0)) : glm::cross(axis, glm::dvec3(1, 0, 0)));
+        v = glm::cross(axis, u);
+    }
+
+    // The projection of x (nothing for a point light when x is not well in front of it:
+    // within 5 degrees of the plane through the light, where the projection blows up).
+    std::optional<glm::dvec2> project(const glm::dvec3& x) const {
+        if (directional) return glm::dvec2(glm::dot(u, x), glm::dot(v, x));
+        const glm::dvec3 w = x - position;
+        const double c = glm::dot(axis, w);
+        if (!(c > 0.087 * glm::length(w))) return std::nullopt;
+        return glm::dvec2(glm::dot(u, w) / c, glm::dot(v, w) / c);
+    }
+    double depth(const glm::dvec3& x) const { return directional ? glm::dot(axis, x) : glm::length(x - position); }
+    // The direction light travels at x (unit).
+    glm::dvec3 rayAt(const glm::dvec3& x) const {
+        if (directional) return axis;
+        const glm::dvec3 w = x - position;
+        const double len = glm::length(w);
+        return len > 0 ? w / len : axis;
+    }
+};
+
+// A 2D box; `all` when it holds every projection (a caster around or beside a point light).
+struct Footprint {
+    bool all = false;
+    glm::dvec2 min{std::numeric_limits<double>::infinity()}, max{-std::numeric_limits<double>::infinity()};
+    void extend(const glm::dvec2& p) {
+        min = glm::min(min, p);
+        max = glm::max(max, p);
+    }
+    bool holds(const glm::dvec2& p) const { return all || (p.x >= min.x && p.x <= max.x && p.y >= min.y && p.y <= max.y); }
+    bool meets(const Footprint& b) const {
+        return all || b.all || !(b.max.x < min.x || b.min.x > max.x || b.max.y < min.y || b.min.y > max.y);
+    }
+};
+
+// The footprint of points (`all` when one has no projection).
+template <class Points>
+Footprint footprintOf(const LightFrame& f, const Points& points, double grow) {
+    Footprint fp;
+    for (const glm::dvec3& p : points) {
+        const std::optional<glm::dvec2> q = f.project(p);
+        if (!q) {
+            fp.all = true;
+            return fp;
+        }
+        fp.extend(*q);
+    }
+    fp.min -= glm::dvec2(grow);
+    fp.max += glm::dvec2(grow);
+    return fp;
+}
+
+std::array<glm::dvec3, 8> corners(const Aabb& b) {
+    std::array<glm::dvec3, 8> c;
+    for (int k = 0; k < 8; ++k)
+        c[size_t(k)] = {k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z};
+    return c;
+}
+
+// A segment of the terrain band on a receiver that crosses the ground.
+struct BandSegment {
+    glm::dvec3 a, b;
+};
+
+}  // namespace
+
+bool isLargeCaster(const WindowObject& o, uint32_t group, int areaSamples, double minSpacing) {
+    if (o.kind == ChunkObject::Kind::Terrain) return true;
+    double area = 0.0;
+    const Mesh& m = *o.mesh;
+    for (size_t t = 0; t < m.triangles.size(); ++t) {
+        if (m.triangleGroup[t] != group) continue;
+        const auto& i = m.triangles[t];
+        const glm::dvec3 a = o.lsTransform.apply(m.positions[i[0]]), b = o.lsTransform.apply(m.positions[i[1]]),
+                         c = o.lsTransform.apply(m.positions[i[2]]);
+        area += 0.5 * glm::length(glm::cross(b - a, c - a));
+    }
+    return std::sqrt(area / double(std::max(1, areaSamples))) >= minSpacing;
+}
+
+std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, uint32_t group, const Light& L, int budget,
+                                        GroupSampleCache& samples) {
+    std::vector<glm::dvec3> out;
+    if (budget <= 0) return out;
+    const WindowObject& caster = w.objects[object];
+    const Mesh& cm = *caster.mesh;
+
+    // The caster group's placed vertices: its footprint and nearest depth.
+    std::vector<glm::dvec3> cv;
+    Aabb cbox;
+    double longestEdge = 0.0;
+    for (size_t t = 0; t < cm.triangles.size(); ++t) {
+        if (cm.triangleGroup[t] != group) continue;
+        const auto& i = cm.triangles[t];
+        for (int k = 0; k < 3; ++k) {
+            cv.push_back(caster.lsTransform.apply(cm.positions[i[size_t(k)]]));
+            cbox.extend(cv.back());
+        }
+        const size_t n = cv.size();
+        longestEdge = std::max({longestEdge, glm::length(cv[n - 1] - cv[n - 2]), glm::length(cv[n - 2] - cv[n - 3]),
+                                glm::length(cv[n - 3] - cv[n - 1])});
+    }
+    if (cv.empty()) return out;
+    const LightFrame frame(L, 0.5 * (cbox.min + cbox.max));
+    // Margins (projection units: metres, or metres per metre of depth for point lights):
+    // the footprint only steers the targets, so a small relative margin is enough.
+    const double grow = frame.directional ? 1e-6 * (glm::length(cbox.max - cbox.min) + 1.0) : 1e-6;
+    const Footprint fp = footprintOf(frame, cv, grow);
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const glm::dvec3& p : cv) nearest = std::min(nearest, frame.depth(p));
+    if (!frame.directional) nearest = std::max(0.0, nearest - longestEdge);  // a face may come closer than its vertices
+    const double deeper = nearest + L.bias;  // a receiver point shallower than this cannot be q
+    const double tol = w.terrainTolerance;
+
+    // The receivers, each with a weight: the square root of its projected area (of its
+    // bounds for a model), so that a 1 m rock beside a 64 m terrain chunk still gets a few
+    // targets (its share by area alone would be a few in a thousand). Terrains are sampled
+    // by their triangles in the footprint, models by their groups' own sample points (a
+    // spread prefix, group_samples.h; no per-triangle work for the thousands of rocks a
+    // terrain's shadow column holds), the band by segments where a model crosses the level
+    // 3/4 of the tolerance under the ground.
+    struct Source {
+        uint32_t object;
+        bool terrain;
+        std::vector<std::array<glm::dvec3, 3>> tris;  // terrain: its triangles that may hold q
+        std::vector<double> cumulative;               // terrain: by projected area
+        uint32_t next = 0;                            // targets taken so far
+    };
+    // Scratch kept by the thread (the search calls this once per bit, from TBB tasks).
+    std::vector<Source> sources;
+    thread_local std::vector<double> weights, bandWeights, aboveLevel;
+    thread_local std::vector<BandSegment> band;
+    thread_local std::vector<glm::dvec3> placedVertices;
+    thread_local std::vector<signed char> vertexSide;
+    thread_local std::vector<std::array<glm::dvec3, 3>> ground;
+    weights.clear();
+    bandWeights.clear();
+    band.clear();
+    for (uint32_t k = 0; k < w.objects.size(); ++k) {
+        const WindowObject& o = w.objects[k];
+        const bool terrain = o.kind == ChunkObject::Kind::Terrain;
+        const auto oc = corners(o.lsBounds);
+        double oDeep = -std::numeric_limits<double>::infinity();
+        for (const glm::dvec3& p : oc) oDeep = std::max(oDeep, frame.depth(p));
+        if (!(oDeep > deeper)) continue;
+        const Footprint ofp = footprintOf(frame, oc, 0.0);
+        if (!fp.meets(ofp)) continue;
+        const Mesh& m = *o.mesh;
+        if (terrain) {
+            Source src{k, true, {}, {}, 0};
+            double area = 0.0;
+            for (size_t t = 0; t < m.triangles.size(); ++t) {
+                const auto& i = m.triangles[t];
+                std::array<glm::dvec3, 3> tri = {o.lsTransform.apply(m.positions[i[0]]), o.lsTransform.apply(m.positions[i[1]]),
+                                                 o.lsTransform.apply(m.positions[i[2]])};
+                if (!(std::max({frame.depth(tri[0]), frame.depth(tri[1]), frame.depth(tri[2])}) > deeper)) continue;
+                if (!fp.meets(footprintOf(frame, tri, 0.0))) continue;
+                const glm::dvec3 n = glm::cross(tri[1] - tri[0], tri[2] - tri[0]) * (o.flipsWinding ? -1.0 : 1.0);
+                const double a2 = glm::length(n);
+                if (!(a2 > 0)) continue;
+                const double facing = glm::dot(n / a2, frame.rayAt((tri[0] + tri[1] + tri[2]) / 3.0));
+                if (!(facing < 0)) continue;  // terrain is one-sided: the light must meet its front
+                area += 0.5 * a2 * -facing;
+                src.tris.push_back(tri);
+                src.cumulative.push_back(area);
+            }
+            if (area > 0) {
+                sources.push_back(std::move(src));
+                weights.push_back(std::sqrt(area));
+            }
+            continue;
+        }
+        // The terrain rule: a model wholly deeper than the tolerance under the ground.
+        const bool ruled = w.hasTerrain;
+        std::optional<double> low;  // the lowest ground under the model's box
+        if (ruled) {
+            low = w.lsTerrainMinOver(o.lsBounds.min.x, o.lsBounds.min.z, o.lsBounds.max.x, o.lsBounds.max.z);
+            if (low && o.lsBounds.max.y < *low - tol) continue;
+        }
+        const double projected = ofp.all ? 1.0 : (ofp.max.x - ofp.min.x) * (ofp.max.y - ofp.min.y);
+        sources.push_back({k, false, {}, {}, 0});
+        weights.push_back(std::sqrt(std::max(projected, 0.0)) + 1e-12);
+        if (!ruled) continue;
+        // The band, where it can hold a witness: the light's ray, entering a ground plane at
+        // angle a, is d / sin(a) past p at depth d, so a point of the band (d <= tol) can be
+        // more than the bias behind p only where sin(a) < tol / bias (twice that here: the
+        // ground is planar only per cell).
+        ground.clear();
+        if (!w.lsTerrainTrianglesOver(o.lsBounds.min.x, o.lsBounds.min.z, o.lsBounds.max.x, o.lsBounds.max.z, ground)) continue;
+        bool grazing = L.bias <= 0;
+        for (const auto& g : ground) {
+            glm::dvec3 n = glm::cross(g[1] - g[0], g[2] - g[0]);
+            const double len = glm::length(n);
+            if (!(len > 0)) continue;
+            n /= len;
+            const glm::dvec3 r = frame.rayAt(g[0]);
+            if (std::abs(glm::dot(r, n)) < 2 * tol * std::abs(n.y) / L.bias) grazing = true;
+        }
+        if (!grazing || !low) continue;
+        // Each vertex above or under the level 3/4 of the tolerance under the ground: by the
+        // ground's range under the box where that settles it (most of a rock's vertices),
+        // else by the ground under the vertex, looked up once (NaN: not yet).
+        double highest = *low;
+        for (const auto& g : ground) highest = std::max({highest, g[0].y, g[1].y, g[2].y});
+        const double level = 0.75 * tol;
+        placedVertices.resize(m.positions.size());
+        aboveLevel.assign(m.positions.size(), std::numeric_limits<double>::quiet_NaN());
+        std::vector<signed char>& side = vertexSide;
+        side.assign(m.positions.size(), 0);
+        auto lookUp = [&](size_t v) {
+            if (std::isnan(aboveLevel[v])) {
+                const std::optional<double> g = w.lsTerrainHeight(placedVertices[v].x, placedVertices[v].z);
+                aboveLevel[v] = g ? placedVertices[v].y - (*g - level) : std::numeric_limits<double>::infinity();
+            }
+            return aboveLevel[v];
+        };
+        bool up = false, down = false;
+        for (size_t v = 0; v < m.positions.size(); ++v) {
+            placedVertices[v] = o.lsTransform.apply(m.positions[v]);
+            const double y = placedVertices[v].y;
+            side[v] = y > highest ? 1 : y < *low - level ? -1 : lookUp(v) >= 0 ? 1 : -1;
+            (side[v] > 0 ? up : down) = true;
+        }
+        if (!up || !down) continue;
+        const size_t firstBand = bandWeights.size();
+        double length = 0.0;
+        for (size_t t = 0; t < m.triangles.size(); ++t) {
+            const auto& i = m.triangles[t];
+            if (side[i[0]] == side[i[1]] && side[i[1]] == side[i[2]]) continue;
+            std::array<glm::dvec3, 3> tri = {placedVertices[i[0]], placedVertices[i[1]], placedVertices[i[2]]};
+            const std::array<double, 3> f = {lookUp(i[0]), lookUp(i[1]), lookUp(i[2])};
+            if (!std::isfinite(f[0] + f[1] + f[2])) continue;
+            glm::dvec3 n = glm::cross(tri[1] - tri[0], tri[2] - tri[0]) * (o.flipsWinding ? -1.0 : 1.0);
+            const double a2 = glm::length(n);
+            if (!(a2 > 0)) continue;
+            const double facing = glm::dot(n / a2, frame.rayAt(tri[0]));
+            if (!m.groups[m.triangleGroup[t]].twoSided() && !(facing < 0)) continue;
+            glm::dvec3 cross[3];
+            size_t crossings = 0;
+            for (size_t c = 0; c < 3; ++c) {
+                const size_t d = (c + 1) % 3;
+                if ((f[c] >= 0) != (f[d] >= 0)) cross[crossings++] = tri[c] + (tri[d] - tri[c]) * (f[c] / (f[c] - f[d]));
+            }
+            if (crossings != 2) continue;
+            const double l = glm::length(cross[1] - cross[0]) * std::abs(facing) + 1e-12;
+            band.push_back({cross[0], cross[1]});
+            bandWeights.push_back(l);
+            length += l;
+        }
+        // Across objects by the square root of the band's (projected) length, as above.
+        for (size_t b = firstBand; b < bandWeights.size(); ++b) bandWeights[b] /= std::sqrt(length);
+    }
+    if (sources.empty()) return out;
+    std::vector<double> cumulative(weights.size()), bandCumulative(bandWeights.size());
+    double total = 0.0, bandTotal = 0.0;
+    for (size_t k = 0; k < weights.size(); ++k) cumulative[k] = total += weights[k];
+    for (size_t k = 0; k < bandWeights.size(); ++k) bandCumulative[k] = bandTotal += bandWeights[k];
+    auto pick = [](const std::vector<double>& cum, double x) {
+        return std::min(size_t(std::upper_bound(cum.begin(), cum.end(), x * cum.back()) - cum.begin()), cum.size() - 1);
+    };
+
+    // Every other target on the band when there is one; at most four tries per target.
+    out.reserve(size_t(budget));
+    uint32_t areaIndex = 0, bandIndex = 0;
+    const double offset = 0.5 / budget;
+    for (uint32_t attempt = 0; out.size() < size_t(budget) && attempt < 4u * uint32_t(budget); ++attempt) {
+        glm::dvec3 p;
+        bool onTerrain = false;
+        if (!band.empty() && attempt % 2 == 1) {
+            const uint32_t s = bandIndex++;
+            const BandSegment& seg = band[pick(bandCumulative, std::fmod(radicalInverse2(s) + offset, 1.0))];
+            p = seg.a + (seg.b - seg.a) * radicalInverse(s, 3);
+        } else {
+            Source& src = sources[pick(cumulative, std::fmod(radicalInverse2(areaIndex++) + offset, 1.0))];
+            const uint32_t s = src.next++;
+            const WindowObject& o = w.objects[src.object];
+            if (src.terrain) {
+                const auto& t = src.tris[pick(src.cumulative, std::fmod(radicalInverse2(s) + offset, 1.0))];
+                double a = radicalInverse(s, 3), b = radicalInverse(s, 5);
+                if (a + b > 1) {
+                    a = 1 - a;
+                    b = 1 - b;
+                }
+                p = t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b;
+                onTerrain = true;
+            } else {
+                // The model's groups in turn, each by its own spread points.
+                const uint32_t groups = uint32_t(std::max<size_t>(1, o.mesh->groups.size()));
+                const std::vector<glm::dvec3>& pts = samples.meshPoints(*o.mesh, s % groups);
+                if (pts.empty()) continue;
+                p = o.lsTransform.apply(pts[(s / groups) % pts.size()]);
+            }
+        }
+        const std::optional<glm::dvec2> q = frame.project(p);
+        if ((!q && !fp.all) || (q && !fp.holds(*q)) || !(frame.depth(p) > deeper)) continue;
+        if (w.hasTerrain && !onTerrain) {
+            const std::optional<double> g = w.lsTerrainHeight(p.x, p.z);
+            if (g && p.y < *g - tol) continue;
+        }
+        out.push_back(p);
+    }
+    return out;
+}
+
+}  // namespace shadowcull::raycast

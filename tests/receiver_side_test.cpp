@@ -1,0 +1,180 @@
+// The receiver-side witness search (issue 19, raycast/receiver_targets.h): scenes whose
+// terrain is a true 1 through a small receiver alone, so that rays through the terrain's
+// own samples miss it and rays through the receivers in its shadow find it.
+
+#include <algorithm>
+
+#include <gtest/gtest.h>
+
+#include "cli/pipeline.h"
+#include "core/window.h"
+#include "raycast/receiver_targets.h"
+#include "tests/support/bake_lookup.h"
+#include "tests/support/space_builder.h"
+#include "tests/test_files.h"
+
+using namespace shadowcull;
+using namespace shadowcull::testing;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kReceiverSide = "receiver-side";
+
+// `useGeometry` false: witness rays alone (no proofs of 0, and no rays at the geometry
+// stage's candidates).
+cli::BakeResult bakeWith(const SpaceBuilder& b, const fs::path& dir, int receiverSamples, bool useGeometry = true) {
+    b.write(dir.string());
+    cli::BakeOptions opt;
+    opt.spaceDir = dir.string();
+    opt.write = false;
+    opt.useGeometry = useGeometry;
+    opt.useGpu = false;  // the GPU stage's dense search could find the witness too
+    opt.raycast.receiverSamples = receiverSamples;
+    opt.geometry.crossCheckWitnesses = true;  // a witness and a proof of 0 must never meet
+    Expected<cli::BakeResult> r = cli::runBake(opt);
+    EXPECT_TRUE(r) << (r ? "" : r.error().what());
+    return r ? std::move(*r) : cli::BakeResult{};
+}
+
+// A ridge: flat ground for x < 50 rising at slope 0.4 to 20 m at the chunk's edge (x =
+// 100, no terrain beyond), under a low sun along +x descending 0.3 per metre. Every ray
+// that meets the ground runs under it to the edge, and from there only a 30 cm cube 10 m
+// beyond the crest is in its way: the terrain is a 1 through the cube alone, whose shadow
+// on the slope is about 0.2 m² of the terrain's 10,000.
+SpaceBuilder ridgeWithStoneBeyond() {
+    SpaceBuilder b;
+    b.addLight(LightSpec::directional("sun", {1.0, -0.3, 0.0}));
+    b.addTerrain(0, 0, 11, [](double x, double) { return x < 50 ? 0.0 : 0.4 * (x - 50); }, 0.0, 20.0);
+    b.addMesh("stone", MeshSpec::box({-0.15, -0.15, -0.15}, {0.15, 0.15, 0.15}));
+    // Traced back along the light, (110, -1.69, 36.1) meets the slope at x = 73.3, inside a
+    // cell and off its diagonal (no vertex or edge-midpoint sample of the terrain near).
+    b.addModel("stone", Affine::translation({110.0, -1.69, 36.1}));
+    return b;
+}
+
+// Flat ground at y = 0 with a 30 cm plate facing up 5 mm under it (within the terrain
+// tolerance of 1 cm, so it receives), a slanted sun without bias: the ground shades the
+// plate, and nothing else is behind the ground anywhere.
+SpaceBuilder plateInTheBand() {
+    SpaceBuilder b;
+    b.addLight(LightSpec::directional("sun", {0.3, -1.0, 0.2}));
+    b.addFlatTerrain(0, 0, 0.0);
+    b.addMesh("plate", MeshSpec::quad({-0.15, 0, -0.15}, {-0.15, 0, 0.15}, {0.15, 0, 0.15}, {0.15, 0, -0.15}));
+    b.addModel("plate", Affine::translation({41.3, -0.005, 57.7}));
+    return b;
+}
+
+// The window of chunk (0, 0) of the space written in `dir`.
+struct Loaded {
+    explicit Loaded(const fs::path& dir) {
+        Expected<Space> loaded = loadSpace(dir.string(), "");
+        EXPECT_TRUE(loaded) << (loaded ? "" : loaded.error().what());
+        if (loaded) space = std::make_unique<Space>(std::move(*loaded));
+        if (space) window = buildWindow(*space, ChunkCoord{0, 0}, meshes);
+    }
+    std::unique_ptr<Space> space;
+    TerrainMeshes meshes;
+    BakeWindow window;
+};
+
+// The terrain's bit: undecided with the terrain's own samples alone (they miss the small
+// receiver's shadow), proved 1 by the receiver-side search; returns its witness.
+Witness onlyReceiverSideFinds(const SpaceBuilder& b) {
+    const ObjectLocation terrain = b.locateObjects().at(SpaceBuilder::terrainKey(0, 0));
+    {
+        const cli::BakeResult r = bakeWith(b, freshTestDir("-off") / "space", 0, false);
+        const Decision* d = findDecision(r, terrain, 0, 0);
+        EXPECT_NE(d, nullptr);
+        if (d) EXPECT_EQ(d->verdict, Verdict::Undecided) << d->stage << ": " << d->reason();
+    }
+    const cli::BakeResult r = bakeWith(b, freshTestDir("-on") / "space", 2048);
+    const Decision* d = findDecision(r, terrain, 0, 0);
+    EXPECT_NE(d, nullptr);
+    if (!d) return {};
+    EXPECT_EQ(d->verdict, Verdict::Kept) << d->stage << ": " << d->reason();
+    EXPECT_NE(d->reason().find(kReceiverSide), std::string_view::npos) << d->reason();
+    EXPECT_NE(d->witness(), nullptr);
+    return d->witness() ? *d->witness() : Witness{};
+}
+
+}  // namespace
+
+TEST(ReceiverSide, RidgeShadowOnAStoneIsFoundFromTheStone) {
+    const Witness w = onlyReceiverSideFinds(ridgeWithStoneBeyond());
+    EXPECT_NE(w.receiver.find("model"), std::string::npos) << w.receiver;  // q on the stone
+    EXPECT_NEAR(w.wsQ.x, 109.85, 0.2);
+    EXPECT_LT(w.wsP.x, 100.0);
+}
+
+TEST(ReceiverSide, PlateInTheTerrainBandIsFound) {
+    const Witness w = onlyReceiverSideFinds(plateInTheBand());
+    EXPECT_NEAR(w.wsQ.y, -0.005, 1e-3);  // q on the plate, in the band
+}
+
+// Without the receiver-side search, the geometry stage's candidate (the point of the
+// plate its shadow volume reaches) is where the witness ray is aimed next.
+TEST(ReceiverSide, GeometryCandidateIsWhereTheNextWitnessRayGoes) {
+    const SpaceBuilder b = plateInTheBand();
+    const cli::BakeResult r = bakeWith(b, freshTestDir() / "space", 0);
+    const Decision* d = findDecision(r, b.locateObjects().at(SpaceBuilder::terrainKey(0, 0)), 0, 0);
+    ASSERT_NE(d, nullptr);
+    ASSERT_EQ(d->verdict, Verdict::Kept) << d->stage << ": " << d->reason();
+    EXPECT_NE(d->reason().find("shadow volume reaches"), std::string_view::npos) << d->reason();
+    ASSERT_NE(d->witness(), nullptr);
+    EXPECT_NEAR(d->witness()->wsQ.y, -0.005, 1e-3);
+    const auto timing = std::find_if(r.stages.begin(), r.stages.end(),
+                                     [](const cli::StageTiming& t) { return t.name == "raycast (geometry candidates)"; });
+    ASSERT_NE(timing, r.stages.end());
+    EXPECT_EQ(timing->stats.provedKept, 1u);
+}
+
+// Deeper than the tolerance, the plate receives nothing (the terrain rule): no target is
+// placed on it, and the terrain is proved 0 as before.
+TEST(ReceiverSide, PlateUnderTheBandGetsNoTargetAndTerrainIsCulled) {
+    SpaceBuilder b;
+    b.addLight(LightSpec::directional("sun", {0.3, -1.0, 0.2}));
+    b.addFlatTerrain(0, 0, 0.0);
+    b.addMesh("plate", MeshSpec::quad({-0.15, 0, -0.15}, {-0.15, 0, 0.15}, {0.15, 0, 0.15}, {0.15, 0, -0.15}));
+    b.addModel("plate", Affine::translation({41.3, -0.02, 57.7}));
+    const fs::path dir = freshTestDir() / "space";
+    const cli::BakeResult r = bakeWith(b, dir, 2048);
+    const Decision* d = findDecision(r, b.locateObjects().at(SpaceBuilder::terrainKey(0, 0)), 0, 0);
+    ASSERT_NE(d, nullptr);
+    EXPECT_EQ(d->verdict, Verdict::Culled) << d->stage << ": " << d->reason();
+
+    const Loaded l(dir);
+    ASSERT_EQ(l.window.terrainObjects.size(), 1u);
+    raycast::GroupSampleCache samples(256, 1024);
+    const std::vector<glm::dvec3> targets =
+        raycast::receiverTargets(l.window, uint32_t(l.window.terrainObjects[0]), 0, l.window.lsLights[0], 512, samples);
+    EXPECT_FALSE(targets.empty());
+    for (const glm::dvec3& p : targets) EXPECT_GT(p.y, -0.015) << "a target under the band";
+}
+
+// The targets of one (caster, light) are the same on every call (the bake is deterministic),
+// at most the budget, and the stone of the ridge scene gets some (its share by the square
+// root of its projected area).
+TEST(ReceiverSide, TargetsAreDeterministicBoundedAndReachSmallReceivers) {
+    const SpaceBuilder b = ridgeWithStoneBeyond();
+    const fs::path dir = freshTestDir() / "space";
+    b.write(dir.string());
+    const Loaded l(dir);
+    const BakeWindow& w = l.window;
+    ASSERT_EQ(w.terrainObjects.size(), 1u);
+    raycast::GroupSampleCache samples(256, 1024);
+    const uint32_t t = uint32_t(w.terrainObjects[0]);
+    EXPECT_TRUE(raycast::isLargeCaster(w.objects[t], 0, 256, 0.5));
+    const auto a = raycast::receiverTargets(w, t, 0, w.lsLights[0], 1000, samples);
+    const auto again = raycast::receiverTargets(w, t, 0, w.lsLights[0], 1000, samples);
+    EXPECT_EQ(a, again);
+    EXPECT_LE(a.size(), 1000u);
+    EXPECT_GT(a.size(), 500u);
+    size_t onStone = 0;
+    for (const glm::dvec3& p : a) onStone += p.x + w.wsOrigin.x > 109.8;
+    EXPECT_GE(onStone, 2u);
+    // The stone is small: not a large caster (its own samples are 2 cm apart).
+    for (size_t k = 0; k < w.objects.size(); ++k) {
+        if (w.objects[k].kind == ChunkObject::Kind::Model) EXPECT_FALSE(raycast::isLargeCaster(w.objects[k], 0, 256, 0.5));
+    }
+}
