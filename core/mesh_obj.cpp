@@ -188,7 +188,7 @@ Mesh parseObj(const fs::path& path, const std::string& text) {
     // `usemtl` (no name) selects that same "" group.
     auto groupFor = [&](const std::string& name) {
         auto [it, added] = groupIndex.emplace(name, uint32_t(mesh.groups.size()));
-        if (added) mesh.groups.push_back(PrimitiveGroup{name});
+        if (added) mesh.groups.push_back(PrimitiveGroup{name, false, false, std::nullopt});
         return it->second;
     };
     std::vector<std::pair<fs::path, int>> mtlFiles;  // library, line of its `mtllib`
@@ -296,7 +296,7 @@ Expected<Mesh> loadObj(const std::string& path) {
         rejectBinary(*text);
         Mesh mesh = parseObj(path, *text);
         mesh.sourceFiles.insert(mesh.sourceFiles.begin(), path);
-        return std::move(mesh);
+        return mesh;
     } catch (const ObjFailure& f) {
         return makeError(ErrorKind::BadInput, path, f.line, f.message);
     } catch (const MtlFailure& f) {

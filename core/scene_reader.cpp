@@ -129,7 +129,7 @@ Mesh Heightfield::toMesh() const {
             m.triangles.push_back({idx(i, j), idx(i + 1, j + 1), idx(i + 1, j)});
         }
     m.triangleGroup.assign(m.triangles.size(), 0);
-    m.groups.push_back(PrimitiveGroup{"terrain", false, false});
+    m.groups.push_back(PrimitiveGroup{"terrain", false, false, std::nullopt});
     return m;
 }
 

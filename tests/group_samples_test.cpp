@@ -19,7 +19,7 @@ Mesh twoGroupMesh() {
     m.positions = {{0, 0, 0}, {10, 0, 0}, {10, 0, 10}, {0, 0, 10}, {20, 0, 0}, {20.005, 0, 0}, {20.005, 0, 2}, {20, 0, 2}};
     m.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 6, 5}, {4, 7, 6}, {0, 0, 1}};
     m.triangleGroup = {0, 0, 1, 1, 1};  // the last triangle repeats a vertex
-    m.groups = {PrimitiveGroup{"square"}, PrimitiveGroup{"rod"}};
+    m.groups = {PrimitiveGroup{"square", false, false, std::nullopt}, PrimitiveGroup{"rod", false, false, std::nullopt}};
     return m;
 }
 

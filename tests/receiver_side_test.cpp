@@ -86,7 +86,9 @@ Witness onlyReceiverSideFinds(const SpaceBuilder& b) {
         const cli::BakeResult r = bakeWith(b, freshTestDir("-off") / "space", 0, false);
         const Decision* d = findDecision(r, terrain, 0, 0);
         EXPECT_NE(d, nullptr);
-        if (d) EXPECT_EQ(d->verdict, Verdict::Undecided) << d->stage << ": " << d->reason();
+        if (d) {
+            EXPECT_EQ(d->verdict, Verdict::Undecided) << d->stage << ": " << d->reason();
+        }
     }
     const cli::BakeResult r = bakeWith(b, freshTestDir("-on") / "space", 2048);
     const Decision* d = findDecision(r, terrain, 0, 0);
@@ -175,6 +177,8 @@ TEST(ReceiverSide, TargetsAreDeterministicBoundedAndReachSmallReceivers) {
     EXPECT_GE(onStone, 2u);
     // The stone is small: not a large caster (its own samples are 2 cm apart).
     for (size_t k = 0; k < w.objects.size(); ++k) {
-        if (w.objects[k].kind == ChunkObject::Kind::Model) EXPECT_FALSE(raycast::isLargeCaster(w.objects[k], 0, 256, 0.5));
+        if (w.objects[k].kind == ChunkObject::Kind::Model) {
+            EXPECT_FALSE(raycast::isLargeCaster(w.objects[k], 0, 256, 0.5));
+        }
     }
 }
