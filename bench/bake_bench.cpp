@@ -38,6 +38,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench/bake_bench_report.h"
+#include "bench/machine.h"
 #include "bench/world_gen.h"
 #include "cli/pipeline.h"
 #include "cli/report.h"
@@ -172,14 +173,6 @@ Options parseArgs(int argc, char** argv) {
 
 double since(std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
-// /proc/self/status field in KiB (VmRSS, VmHWM), 0 when unavailable.
-long procStatusKiB(const char* field) {
-    std::ifstream in("/proc/self/status");
-    for (std::string line; std::getline(in, line);)
-        if (line.rfind(field, 0) == 0) return std::atol(line.c_str() + std::strlen(field) + 1);
-    return 0;
 }
 
 // ---------------------------------------------------------------------------------------

@@ -48,16 +48,6 @@ std::string mib(double kib) {
     return fmt("%.0f MiB", kib / 1024.0);
 }
 
-std::string cpuModel() {
-    std::ifstream in("/proc/cpuinfo");
-    for (std::string line; std::getline(in, line);)
-        if (line.rfind("model name", 0) == 0) {
-            const size_t c = line.find(':');
-            return c == std::string::npos ? line : line.substr(c + 2);
-        }
-    return "unknown CPU";
-}
-
 
 // Bits past the reach stage per chunk baked: the work a chunk asks for (compare per-chunk
 // times of worlds only where this matches).

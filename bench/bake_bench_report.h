@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/machine.h"
 #include "bench/world_gen.h"
 
 namespace shadowcull::bench {
@@ -27,7 +28,6 @@ std::string count(uint64_t v);
 std::string seconds(double s);
 std::string rate(double perSecond);
 std::string mib(double kib);
-std::string cpuModel();
 
 struct WorldRun {
     WorldSpec spec;

@@ -43,6 +43,8 @@
 #include <vector>
 
 #include <glm/geometric.hpp>
+
+#include "bench/machine.h"
 #include <glm/gtc/quaternion.hpp>
 #include <nlohmann/json.hpp>
 
@@ -50,6 +52,8 @@
 
 using nlohmann::json;
 using shadowcull::testing::GltfSceneBuilder;
+using shadowcull::bench::cpuModel;
+using shadowcull::bench::procStatusKiB;
 namespace fs = std::filesystem;
 
 namespace {
@@ -150,23 +154,6 @@ std::string megabytes(double bytes) { return fmt("%.1f MB", bytes / 1e6); }
 
 double since(std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
-long procStatusKiB(const char* field) {
-    std::ifstream in("/proc/self/status");
-    for (std::string line; std::getline(in, line);)
-        if (line.rfind(field, 0) == 0) return std::atol(line.c_str() + std::strlen(field) + 1);
-    return 0;
-}
-
-std::string cpuModel() {
-    std::ifstream in("/proc/cpuinfo");
-    for (std::string line; std::getline(in, line);)
-        if (line.rfind("model name", 0) == 0) {
-            const size_t c = line.find(':');
-            return c == std::string::npos ? line : line.substr(c + 2);
-        }
-    return "unknown CPU";
 }
 
 double memTotalGiB() {
