@@ -38,4 +38,8 @@ struct BakeTotals {
     void add(const ChunkVerdicts& chunk);
 };
 
+// Adds every bit of a baked chunk to `tally` (its groups' placed triangles, classified by
+// verdict, stage and reason): what the summary's savings table counts.
+void tallyVerdicts(savings::Tally& tally, const ChunkVerdicts& chunk);
+
 }  // namespace shadowcull::cli

@@ -6,8 +6,8 @@
 
 #include "cli/output_guard.h"
 #include "cli/pipeline.h"
+#include "cli/report.h"
 #include "core/chunk_writer.h"
-#include "core/savings.h"
 #include "core/scene.h"
 
 namespace shadowcull::cli {
@@ -130,11 +130,10 @@ MergeOutcome mergeShards(const std::vector<std::pair<std::string, results::Resul
                      [](const results::ChunkRecord& a, const results::ChunkRecord& b) { return coordOf(a.chunk) < coordOf(b.chunk); });
     std::stable_sort(ownWarnings.begin(), ownWarnings.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     for (auto& [at, w] : ownWarnings) m.warnings.push_back(std::move(w));
-    m.summary = results::summarize(m.chunks);
-    // What the masks remove: tallied from the records, as the single bake tallies its own.
-    const savings::Tally t = savings::tallyResults(m);
-    m.summary.savings = t.world();
-    for (size_t k = 0; k < m.chunks.size() && k < t.chunks().size(); ++k) m.chunks[k].savings = t.chunks()[k];
+    // Counted and tallied from the records by the builder the single bake streams through.
+    ResultsBuilder builder(m.lights);
+    for (results::ChunkRecord& c : m.chunks) builder.add(c);
+    m.summary = builder.summary();
     return o;
 }
 

@@ -14,16 +14,7 @@ savings::Tally tallyBake(const BakeResult& r) {
     savings::Tally t(r.settings.lights.size());
     for (const ChunkVerdicts& cv : r.chunks) {
         t.beginChunk();
-        for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
-            const ObjectVerdicts& ov = cv.objects[oi];
-            for (int g = 0; g < ov.groupCount; ++g) {
-                const uint64_t tris = size_t(g) < ov.groupTriangles.size() ? ov.groupTriangles[size_t(g)] : 0;
-                for (int l = 0; l < cv.lightCount; ++l) {
-                    const Decision& d = cv.at(oi, g, l);
-                    t.add(size_t(l), savings::classify(verdictName(d.verdict), d.stage, d.reason()), d.stage, tris);
-                }
-            }
-        }
+        tallyVerdicts(t, cv);
     }
     return t;
 }
@@ -144,6 +135,16 @@ ResultsBuilder::ResultsBuilder(const SpaceSettings& settings) : tally_(settings.
     }
 }
 
+ResultsBuilder::ResultsBuilder(std::vector<results::LightRecord> lights) : tally_(lights.size()) {
+    file_.lights = std::move(lights);
+}
+
+results::Summary ResultsBuilder::summary() const {
+    results::Summary s = file_.summary;
+    s.savings = tally_.world();
+    return s;
+}
+
 void ResultsBuilder::add(results::ChunkRecord& chunk) {
     // What the masks remove, per chunk and for the world: tallied from the records (the
     // resumed chunks' too), as `merge` and `report` tally a file.
@@ -155,7 +156,7 @@ void ResultsBuilder::add(results::ChunkRecord& chunk) {
 results::ResultsFile ResultsBuilder::tail(const std::vector<Diagnostic>& diagnostics,
                                           const std::optional<results::ShardRecord>& shard) const {
     results::ResultsFile f = file_;
-    f.summary.savings = tally_.world();
+    f.summary = summary();
     for (const Diagnostic& d : diagnostics) f.warnings.push_back(d.what());
     f.shard = shard;
     return f;

@@ -39,8 +39,12 @@ results::ResultsFile resultsFile(const BakeResult& r);
 class ResultsBuilder {
 public:
     explicit ResultsBuilder(const SpaceSettings& settings);
+    // The lights as a results file lists them already (merge).
+    explicit ResultsBuilder(std::vector<results::LightRecord> lights);
     // Fills `chunk.savings` and counts it.
     void add(results::ChunkRecord& chunk);
+    // The counts and savings of the chunks added so far.
+    results::Summary summary() const;
     // The file without its chunks (lights, summary, warnings, shard): what follows them.
     results::ResultsFile tail(const std::vector<Diagnostic>& diagnostics, const std::optional<results::ShardRecord>& shard) const;
 
