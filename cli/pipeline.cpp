@@ -90,6 +90,15 @@ std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdic
 
 namespace {
 
+// Appends `point` and four points `r` metres from it to its sides across `direction`
+// (unit): a small cross of witness targets around a point the search is aimed at.
+void appendCross(const glm::dvec3& point, const glm::dvec3& direction, double r, std::vector<glm::dvec3>& targets) {
+    const glm::dvec3& d = direction;
+    const glm::dvec3 u = glm::normalize(std::abs(d.y) < 0.9 ? glm::cross(d, glm::dvec3(0, 1, 0)) : glm::cross(d, glm::dvec3(1, 0, 0)));
+    const glm::dvec3 v = glm::cross(d, u);
+    for (const glm::dvec3& off : {glm::dvec3(0.0), r * u, -r * u, r * v, -r * v}) targets.push_back(point + off);
+}
+
 // Targets for a dense witness search around the pixels where the GPU confirmation saw
 // samples pass: each pixel's ray and four rays a third of its footprint to the sides.
 std::vector<raycast::WitnessSearch> denseSearches(const std::vector<gpu::GroupPixels>& passed, const ChunkVerdicts& cv) {
@@ -97,13 +106,7 @@ std::vector<raycast::WitnessSearch> denseSearches(const std::vector<gpu::GroupPi
     for (const gpu::GroupPixels& gp : passed) {
         if (gp.pixels.empty() || cv.at(gp.object, gp.group, gp.light).verdict != Verdict::Undecided) continue;
         raycast::WitnessSearch ws{gp.object, gp.group, gp.light, {}};
-        for (const gpu::PassedPixel& px : gp.pixels) {
-            const glm::dvec3 d = px.lsDirection;
-            const glm::dvec3 u = glm::normalize(std::abs(d.y) < 0.9 ? glm::cross(d, glm::dvec3(0, 1, 0)) : glm::cross(d, glm::dvec3(1, 0, 0)));
-            const glm::dvec3 v = glm::cross(d, u);
-            const double r = px.footprint / 3.0;
-            for (const glm::dvec3& off : {glm::dvec3(0.0), r * u, -r * u, r * v, -r * v}) ws.targets.push_back(px.lsPoint + off);
-        }
+        for (const gpu::PassedPixel& px : gp.pixels) appendCross(px.lsPoint, px.lsDirection, px.footprint / 3.0, ws.targets);
         out.push_back(std::move(ws));
     }
     return out;
@@ -121,10 +124,8 @@ std::vector<raycast::WitnessSearch> candidateSearches(const std::vector<geometry
         const glm::dvec3 d = L.type == LightType::Directional || glm::length(c.lsPoint - L.position) == 0.0
                                  ? L.direction
                                  : glm::normalize(c.lsPoint - L.position);
-        const glm::dvec3 u = glm::normalize(std::abs(d.y) < 0.9 ? glm::cross(d, glm::dvec3(0, 1, 0)) : glm::cross(d, glm::dvec3(1, 0, 0)));
-        const glm::dvec3 v = glm::cross(d, u);
         raycast::WitnessSearch ws{c.object, c.group, c.light, {}};
-        for (const glm::dvec3& off : {glm::dvec3(0.0), 2e-3 * u, -2e-3 * u, 2e-3 * v, -2e-3 * v}) ws.targets.push_back(c.lsPoint + off);
+        appendCross(c.lsPoint, d, 2e-3, ws.targets);
         out.push_back(std::move(ws));
     }
     return out;
