@@ -37,10 +37,12 @@ double cellSurfaceMin(const Heightfield& hf, int i, int j, double u0, double v0,
 }
 
 // Calls visit(terrain) for every terrain over each chunk square the rectangle
-// [x0,x1] x [z0,z1] meets; false (stopping early) when one of those squares has none, or
-// when the rectangle spans more than `maxSquares` squares a side.
-template <class Visit>
-bool forTerrainsOver(const BakeWindow& w, double x0, double z0, double x1, double z1, int maxSquares, const Visit& visit) {
+// [x0,x1] x [z0,z1] meets, and open(square) for each of those squares that has none
+// (it returns false to stop: the result is then false); false also when the rectangle
+// spans more than `maxSquares` squares a side.
+template <class Visit, class Open>
+bool forTerrainsOver(const BakeWindow& w, double x0, double z0, double x1, double z1, int maxSquares, const Visit& visit,
+                     const Open& open) {
     if (w.terrainObjects.empty() || !(x0 <= x1 && z0 <= z1)) return false;
     // Chunk squares are aligned with the window origin (a chunk corner).
     const int cx0 = int(std::floor(x0 / w.chunkSize)), cx1 = int(std::floor(x1 / w.chunkSize));
@@ -55,9 +57,15 @@ bool forTerrainsOver(const BakeWindow& w, double x0, double z0, double x1, doubl
                 covered = true;
                 visit(o);
             }
-            if (!covered) return false;
+            if (!covered && !open(GroundOpening{cx * w.chunkSize, cz * w.chunkSize, (cx + 1) * w.chunkSize, (cz + 1) * w.chunkSize}))
+                return false;
         }
     return true;
+}
+
+template <class Visit>
+bool forTerrainsOver(const BakeWindow& w, double x0, double z0, double x1, double z1, int maxSquares, const Visit& visit) {
+    return forTerrainsOver(w, x0, z0, x1, z1, maxSquares, visit, [](const GroundOpening&) { return false; });
 }
 
 }  // namespace
@@ -86,27 +94,39 @@ std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double 
     return covered ? lowest : std::nullopt;
 }
 
+bool BakeWindow::lsGroundOver(double x0, double z0, double x1, double z1, std::vector<std::array<glm::dvec3, 3>>& out,
+                              std::vector<GroundOpening>* openings) const {
+    // A part spanning more than a few chunks: not worth it (the caller keeps the receiver).
+    return forTerrainsOver(
+        *this, x0, z0, x1, z1, 4,
+        [&](const WindowObject& o) {
+            const Heightfield& hf = *o.heightfield;
+            const int cells = hf.n - 1;
+            const double cell = hf.size / double(cells);
+            auto index = [&](double v, double origin, int slack) {
+                return std::clamp(int(std::floor((v - origin) / cell)) + slack, 0, cells - 1);
+            };
+            const int i0 = index(x0, o.lsTerrainOrigin.x, -1), i1 = index(x1, o.lsTerrainOrigin.x, 1);
+            const int j0 = index(z0, o.lsTerrainOrigin.z, -1), j1 = index(z1, o.lsTerrainOrigin.z, 1);
+            for (int j = j0; j <= j1; ++j)
+                for (int i = i0; i <= i1; ++i)
+                    for (int half = 0; half < 2; ++half) {
+                        // Heightfield::toMesh: cell (i, j) holds triangles 2 (j cells + i) and the next.
+                        const auto& t = o.mesh->triangles[2 * (size_t(j) * size_t(cells) + size_t(i)) + size_t(half)];
+                        out.push_back({o.lsTransform.apply(o.mesh->positions[t[0]]), o.lsTransform.apply(o.mesh->positions[t[1]]),
+                                       o.lsTransform.apply(o.mesh->positions[t[2]])});
+                    }
+        },
+        [&](const GroundOpening& g) {
+            if (!openings) return false;
+            openings->push_back(g);
+            return true;
+        });
+}
+
 bool BakeWindow::lsTerrainTrianglesOver(double x0, double z0, double x1, double z1,
                                         std::vector<std::array<glm::dvec3, 3>>& out) const {
-    // A part spanning more than a few chunks: not worth it (the caller keeps the receiver).
-    return forTerrainsOver(*this, x0, z0, x1, z1, 4, [&](const WindowObject& o) {
-        const Heightfield& hf = *o.heightfield;
-        const int cells = hf.n - 1;
-        const double cell = hf.size / double(cells);
-        auto index = [&](double v, double origin, int slack) {
-            return std::clamp(int(std::floor((v - origin) / cell)) + slack, 0, cells - 1);
-        };
-        const int i0 = index(x0, o.lsTerrainOrigin.x, -1), i1 = index(x1, o.lsTerrainOrigin.x, 1);
-        const int j0 = index(z0, o.lsTerrainOrigin.z, -1), j1 = index(z1, o.lsTerrainOrigin.z, 1);
-        for (int j = j0; j <= j1; ++j)
-            for (int i = i0; i <= i1; ++i)
-                for (int half = 0; half < 2; ++half) {
-                    // Heightfield::toMesh: cell (i, j) holds triangles 2 (j cells + i) and the next.
-                    const auto& t = o.mesh->triangles[2 * (size_t(j) * size_t(cells) + size_t(i)) + size_t(half)];
-                    out.push_back({o.lsTransform.apply(o.mesh->positions[t[0]]), o.lsTransform.apply(o.mesh->positions[t[1]]),
-                                   o.lsTransform.apply(o.mesh->positions[t[2]])});
-                }
-    });
+    return lsGroundOver(x0, z0, x1, z1, out, nullptr);
 }
 
 namespace {

@@ -42,6 +42,12 @@ struct WindowObject {
     std::string label;                // "0000ffffo.chunk model #2 (uuid)" for reports
 };
 
+// A window-local chunk square [x0,x1] x [z0,z1] (metres) with no terrain loaded: points
+// over it are under no terrain, so the terrain rule does not hold there.
+struct GroundOpening {
+    double x0, z0, x1, z1;
+};
+
 struct BakeWindow {
     ChunkCoord centre;
     std::string centrePath;
@@ -74,6 +80,12 @@ struct BakeWindow {
     // incomplete and must not be used).
     bool lsTerrainTrianglesOver(double x0, double z0, double x1, double z1,
                                 std::vector<std::array<glm::dvec3, 3>>& out) const;
+    // As lsTerrainTrianglesOver, but a chunk square the rectangle meets that has no
+    // terrain loaded (the world's edge, a chunk without terrain) is appended to
+    // `openings` instead of failing: no terrain rule holds over it. False only when the
+    // rectangle spans more than a few squares, or when `openings` is null and one is open.
+    bool lsGroundOver(double x0, double z0, double x1, double z1, std::vector<std::array<glm::dvec3, 3>>& out,
+                      std::vector<GroundOpening>* openings) const;
     // The meshes the window holds (what a stage's per-mesh cache keeps as the window slides).
     std::unordered_set<const Mesh*> meshes() const {
         std::unordered_set<const Mesh*> m;

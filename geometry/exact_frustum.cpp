@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
@@ -95,6 +96,19 @@ struct FastHalfSpace {
     }
 };
 
+// Condition 1 of semantics.md on a reached part: the caster's plane and the light's
+// direction, and where to find occluders. Directional lights only: every point q of the
+// part lies on the ray through the caster point p(q) = q - beta(q) d, beta(q) =
+// n . (q - a) / (n . d).
+template <class Kn>
+struct ShadeTest {
+    typename Kn::Vector_3 n;  // the caster's normal, n . d > 0
+    typename Kn::Point_3 a;   // a caster vertex
+    typename Kn::FT nd;       // n . d
+    typename Kn::Vector_3 d;
+    const OccluderSource* source;
+};
+
 struct ExactFrustum::Impl {
     bool degenerate = false;
     bool directional = true;
@@ -106,6 +120,10 @@ struct ExactFrustum::Impl {
     Vector nearN;
     Point nearO;
     FT nearK;
+    // Directional light, a caster with area, no dilation: the light's direction, for the
+    // occluder test (nearN is then the caster's plane, nearO a vertex, nearK = nearN . d).
+    bool shadeable = false;
+    Vector dir;
     double dmax = 0.0;      // point lights: upper bound of |p - L| over the caster
     double nearDilate = 0;  // dilation * |nearN|, rounded up
     // Sheets (edge-on casters, directional): the caster's edges the light enters by, in
@@ -138,6 +156,15 @@ struct ExactFrustum::Impl {
     std::vector<HalfSpace> opens(double beta) const;
     std::vector<IK::Point_3> iInsideSides(const Triangle& r) const;
     std::vector<IHalfSpace> iOpens(double beta) const;
+    // The occluder test's data, or nothing (no source, or not shadeable).
+    std::optional<ShadeTest<K>> shade(const OccluderSource* source) const {
+        if (!source || !shadeable) return std::nullopt;
+        return ShadeTest<K>{nearN, nearO, nearK, dir, source};
+    }
+    std::optional<ShadeTest<IK>> iShade(const OccluderSource* source) const {
+        if (!source || !shadeable) return std::nullopt;
+        return ShadeTest<IK>{nearN.approx(), nearO.approx(), nearK.approx(), dir.approx(), source};
+    }
 };
 
 namespace {
@@ -271,6 +298,8 @@ ExactFrustum::ExactFrustum(const Triangle& t, const LightGeometry& light, double
     m.nearN = n;
     m.nearO = light.directional ? a : L;
     m.nearK = s == CGAL::NEGATIVE ? -facing : facing;
+    m.shadeable = light.directional && !(dilation > 0);
+    m.dir = d;
     if (!light.directional) {
         double dm = 0;
         for (const glm::dvec3& p : t) dm = std::max(dm, glm::length(p - light.position));
@@ -328,11 +357,55 @@ glm::dvec3 meanOf(const std::vector<PointT>& poly) {
     return sum / double(poly.size());
 }
 
+// The sign of x when certain, else 0 (exact numbers: their sign; intervals: 0 unless the
+// interval excludes 0). So a test written with it only says yes when the exact answer is yes.
+int certainSign(const FT& x) { return int(CGAL::sign(x)); }
+int certainSign(const IK::FT& x) { return x.inf() > 0 ? 1 : x.sup() < 0 ? -1 : 0; }
+bool certainlyNonNegative(const FT& x) { return CGAL::sign(x) != CGAL::NEGATIVE; }
+bool certainlyNonNegative(const IK::FT& x) { return x.inf() >= 0; }
+
+// True when the opaque triangle `o` shades the caster point of every point of the convex
+// polygon `poly`: each lies in o's closed prism along d, and o's point on its ray lies
+// strictly nearer the light than the caster's. Both conditions are affine in the point
+// (the planes are fixed), so the polygon's vertices decide the whole polygon. Uncertain
+// signs (intervals) answer false: conservative.
+template <class Kn>
+bool shadesWhole(const Triangle& o, const std::vector<typename Kn::Point_3>& poly, const ShadeTest<Kn>& t) {
+    using P = typename Kn::Point_3;
+    using V = typename Kn::Vector_3;
+    using N = typename Kn::FT;
+    const P v[3] = {P(o[0].x, o[0].y, o[0].z), P(o[1].x, o[1].y, o[1].z), P(o[2].x, o[2].y, o[2].z)};
+    const V m = CGAL::cross_product(v[1] - v[0], v[2] - v[0]);
+    const N md = m * t.d;
+    const int sm = certainSign(md);
+    if (sm == 0) return false;  // edge-on to the light (or uncertain): shades no area
+    V side[3];
+    for (int e = 0; e < 3; ++e) {
+        side[e] = CGAL::cross_product(v[(e + 1) % 3] - v[e], t.d);
+        const int inward = certainSign(side[e] * (v[(e + 2) % 3] - v[e]));
+        if (inward == 0) return false;
+        if (inward < 0) side[e] = -side[e];
+    }
+    for (const P& q : poly) {
+        for (int e = 0; e < 3; ++e)
+            if (!certainlyNonNegative(side[e] * (q - v[e]))) return false;
+        // alpha - beta > 0, alpha = m . (q - v0) / md, beta = n . (q - a) / nd, nd > 0.
+        N num = (m * (q - v[0])) * t.nd - (t.n * (q - t.a)) * md;
+        if (sm < 0) num = -num;
+        if (certainSign(num) <= 0) return false;
+    }
+    return true;
+}
+
+// True when some one occluder the source gives for the polygon's box shades all of it.
+template <class Kn>
+bool shadedWhole(const std::vector<typename Kn::Point_3>& poly, const ShadeTest<Kn>& t);
+
 // With `inside`: when true, the mean of the clipped polygon's vertices (strictly inside,
 // up to its rounding to double: a place to aim a witness ray at, never a proof).
 template <class Kn>
 bool holdsStrictlyInside(std::vector<typename Kn::Point_3> poly, const std::vector<HalfSpaceT<Kn>>& opens,
-                         glm::dvec3* inside = nullptr) {
+                         glm::dvec3* inside = nullptr, const ShadeTest<Kn>* shade = nullptr) {
     for (const HalfSpaceT<Kn>& h : opens) {
         clip(poly, h);
         if (poly.empty()) return false;
@@ -354,16 +427,20 @@ bool holdsStrictlyInside(std::vector<typename Kn::Point_3> poly, const std::vect
         if (!strictly && unknown) throw CGAL::Uncertain_conversion_exception("strictly inside: sign not certain");
         if (!strictly) return false;
     }
+    // Reached, but no caster point of it lit: no witness can come from here.
+    if (shade && shadedWhole<Kn>(poly, *shade)) return false;
     if (inside) *inside = meanOf(poly);
     return true;
 }
 
 // The terrain rule on the convex polygon `poly` (inside the frustum's closed sides): some
 // point of it strictly inside all `opens`, in the vertical prism of a `ground` triangle
-// and not more than `tolerance` under its plane (see reachesAboveGround).
+// and not more than `tolerance` under its plane, or over an opening (see
+// reachesAboveGround).
 template <class Kn>
 bool aboveGround(const std::vector<typename Kn::Point_3>& poly, const std::vector<HalfSpaceT<Kn>>& opens,
-                 const std::vector<Triangle>& ground, double tolerance, glm::dvec3* inside) {
+                 const std::vector<Triangle>& ground, const std::vector<GroundOpening>& openings, double tolerance,
+                 glm::dvec3* inside, const ShadeTest<Kn>* shade) {
     using P = typename Kn::Point_3;
     using V = typename Kn::Vector_3;
     using N = typename Kn::FT;
@@ -387,7 +464,16 @@ bool aboveGround(const std::vector<typename Kn::Point_3>& poly, const std::vecto
         }
         if (part.empty()) continue;
         clip(part, HalfSpaceT<Kn>{n, v[0], N(tolerance) * n.y()});
-        if (!part.empty() && holdsStrictlyInside<Kn>(part, opens, inside)) return true;
+        if (!part.empty() && holdsStrictlyInside<Kn>(part, opens, inside, shade)) return true;
+    }
+    // Over a square with no terrain: its closed vertical prism, at any height.
+    for (const GroundOpening& g : openings) {
+        std::vector<P> part = poly;
+        const HalfSpaceT<Kn> sides[4] = {{V(1, 0, 0), P(g.x0, 0, 0), N(0)}, {V(-1, 0, 0), P(g.x1, 0, 0), N(0)},
+                                         {V(0, 0, 1), P(0, 0, g.z0), N(0)}, {V(0, 0, -1), P(0, 0, g.z1), N(0)}};
+        for (const HalfSpaceT<Kn>& h : sides)
+            if (!part.empty()) clip(part, h);
+        if (!part.empty() && holdsStrictlyInside<Kn>(part, opens, inside, shade)) return true;
     }
     return false;
 }
@@ -403,6 +489,16 @@ std::array<glm::dvec3, 2> boxOf(const std::vector<PointT>& poly) {
         }
     }
     return {lo, hi};
+}
+
+template <class Kn>
+bool shadedWhole(const std::vector<typename Kn::Point_3>& poly, const ShadeTest<Kn>& t) {
+    thread_local std::vector<Triangle> occluders;  // scratch: runs per reached part
+    occluders.clear();
+    (*t.source)(boxOf(poly), occluders);
+    for (const Triangle& o : occluders)
+        if (shadesWhole<Kn>(o, poly, t)) return true;
+    return false;
 }
 
 }  // namespace
@@ -455,7 +551,7 @@ std::vector<IHalfSpace> ExactFrustum::Impl::iOpens(double beta) const {
 }
 
 bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3, 2>* reachedPart,
-                           glm::dvec3* inside) const {
+                           glm::dvec3* inside, const OccluderSource* occluders) const {
     const Impl& m = *impl_;
     if (m.degenerate) {
         if (reachedPart) *reachedPart = {glm::min(glm::min(r[0], r[1]), r[2]), glm::max(glm::max(r[0], r[1]), r[2])};
@@ -470,14 +566,16 @@ bool ExactFrustum::reaches(const Triangle& r, double beta, std::array<glm::dvec3
         CGAL::Protect_FPU_rounding<true> upward;
         const std::vector<IK::Point_3> poly = m.iInsideSides(r);
         if (poly.empty()) return false;
-        const bool reached = holdsStrictlyInside<IK>(poly, m.iOpens(beta), inside);
+        const std::optional<ShadeTest<IK>> shade = m.iShade(occluders);
+        const bool reached = holdsStrictlyInside<IK>(poly, m.iOpens(beta), inside, shade ? &*shade : nullptr);
         if (reached && reachedPart) *reachedPart = boxOf(poly);
         return reached;
     } catch (const CGAL::Uncertain_conversion_exception&) {
     }
     const std::vector<Point> poly = m.insideSides(r);
     if (poly.empty()) return false;
-    const bool reached = holdsStrictlyInside<K>(poly, m.opens(beta), inside);
+    const std::optional<ShadeTest<K>> shade = m.shade(occluders);
+    const bool reached = holdsStrictlyInside<K>(poly, m.opens(beta), inside, shade ? &*shade : nullptr);
     if (reached && reachedPart) *reachedPart = boxOf(poly);
     return reached;
 }
@@ -490,7 +588,8 @@ bool ExactFrustum::reachesExactly(const Triangle& r, double beta) const {
 }
 
 bool ExactFrustum::reachesAboveGround(const Triangle& r, double beta, const std::vector<Triangle>& ground,
-                                      double tolerance, glm::dvec3* inside) const {
+                                      const std::vector<GroundOpening>& openings, double tolerance, glm::dvec3* inside,
+                                      const OccluderSource* occluders) const {
     const Impl& m = *impl_;
     if (m.degenerate) {
         if (inside) *inside = (r[0] + r[1] + r[2]) / 3.0;
@@ -500,12 +599,14 @@ bool ExactFrustum::reachesAboveGround(const Triangle& r, double beta, const std:
         CGAL::Protect_FPU_rounding<true> upward;
         const std::vector<IK::Point_3> poly = m.iInsideSides(r);
         if (poly.empty()) return false;
-        return aboveGround<IK>(poly, m.iOpens(beta), ground, tolerance, inside);
+        const std::optional<ShadeTest<IK>> shade = m.iShade(occluders);
+        return aboveGround<IK>(poly, m.iOpens(beta), ground, openings, tolerance, inside, shade ? &*shade : nullptr);
     } catch (const CGAL::Uncertain_conversion_exception&) {
     }
     const std::vector<Point> poly = m.insideSides(r);
     if (poly.empty()) return false;
-    return aboveGround<K>(poly, m.opens(beta), ground, tolerance, inside);
+    const std::optional<ShadeTest<K>> shade = m.shade(occluders);
+    return aboveGround<K>(poly, m.opens(beta), ground, openings, tolerance, inside, shade ? &*shade : nullptr);
 }
 
 FrustumFilter::FrustumFilter(const Triangle& t, const LightGeometry& light, double dilation) : caster_(t), light_(light) {

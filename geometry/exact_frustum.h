@@ -18,14 +18,21 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <memory>
 #include <vector>
 
 #include <glm/vec3.hpp>
 
+#include "core/window.h"
+
 namespace shadowcull::geometry {
 
 using Triangle = std::array<glm::dvec3, 3>;  // window-local metres
+
+// Opaque triangles (window-local) that may lie between the light and the points of a
+// window-local box: a superset is fine, each is tested exactly. Appends to `out`.
+using OccluderSource = std::function<void(const std::array<glm::dvec3, 2>& lsBox, std::vector<Triangle>& out)>;
 
 struct LightGeometry {
     bool directional = true;
@@ -54,23 +61,28 @@ public:
     // point of the receiver inside the frustum's side half-spaces (for the terrain rule),
     // and `inside` a point of the receiver in the frustum (rounded to double: where a
     // witness ray may be aimed, not a proof of anything).
+    // With `occluders` (a directional light, no dilation): a reached part that one of the
+    // triangles they give shades wholly (each point's caster point p lies strictly behind
+    // it along the light: p is not lit, condition 1 of semantics.md) does not count, so
+    // the answer may be false where reaches() without them is true. Exact.
     bool reaches(const Triangle& receiver, double beta, std::array<glm::dvec3, 2>* reachedPart = nullptr,
-                 glm::dvec3* inside = nullptr) const;
+                 glm::dvec3* inside = nullptr, const OccluderSource* occluders = nullptr) const;
     // The same answer without the interval fast path (every step in the exact kernel): the
     // reference the tests compare the fast path with.
     bool reachesExactly(const Triangle& receiver, double beta) const;
     // The terrain rule, exactly (issue 19): true when some point of `receiver` lies in the
     // frustum (as reaches()) and is not deeper than `tolerance` (metres) under the ground,
     // that is, lies in the vertical prism of one of the `ground` triangles (window-local,
-    // any winding, none vertical) and not more than `tolerance` below its plane. The
-    // caller passes every ground triangle over the part reaches() reported; points over no
-    // ground triangle would count as receiving, so the caller must also know the part is
-    // covered. Where several terrains overlap, a point above any of them counts (the
+    // any winding, none vertical) and not more than `tolerance` below its plane, or over
+    // one of the `openings` (closed squares with no terrain: any height receives there).
+    // The caller passes every ground triangle and opening over the part reaches()
+    // reported; points over neither would count as not receiving. Where several terrains overlap, a point above any of them counts (the
     // lowest surface decides, as BakeWindow::lsTerrainHeight). Exact; a degenerate ground
     // triangle makes it answer true (conservative). `inside`, when true: such a point
     // (rounded to double, as for reaches()).
     bool reachesAboveGround(const Triangle& receiver, double beta, const std::vector<Triangle>& ground,
-                            double tolerance, glm::dvec3* inside = nullptr) const;
+                            const std::vector<GroundOpening>& openings, double tolerance, glm::dvec3* inside = nullptr,
+                            const OccluderSource* occluders = nullptr) const;
 
 private:
     std::unique_ptr<Impl> impl_;

@@ -369,6 +369,38 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     if (beta >= 0 && !made) made = makeReceiver(k, tri);
                     return beta;
                 };
+                // Opaque triangles that may lie between a directional light and a reached
+                // part: the column from the part's box back towards the light, walked as a
+                // receiver column is (the light reversed). The exact tests then drop a part
+                // one of them shades wholly (no caster point of it lit). Buried parts of the
+                // objects are not in the tree's boxes: fewer occluders, never a wrong one.
+                std::optional<OccluderSource> occluders;
+                if (!local && !(L.filterRadius > 0) && !exhaustive)
+                    occluders.emplace([&](const std::array<glm::dvec3, 2>& box, std::vector<Triangle>& out) {
+                        constexpr size_t kMaxOccluders = 256;  // enough for a part a fraction of a cell wide
+                        LightGeometry back = lg;
+                        back.direction = -lg.direction;
+                        Light backLight = L;
+                        backLight.direction = -L.direction;
+                        const ShadowQuery q = ShadowQuery::ofCluster(Aabb{box[0], box[1]}, RowTransform{}, back, 0.0, margin);
+                        const Aabb qBox = q.columnBox(backLight, limits);
+                        objectTree.visit([&](const Aabb& b) { return overlaps(b, qBox) && q.mayHold(b); },
+                                         [&](uint32_t k) {
+                                             const WindowObject& o = window.objects[k];
+                                             const Mesh& mesh = *o.mesh;
+                                             const ShadowQuery::InMesh mq = q.inMesh(o.lsTransform);
+                                             return trees_.tree(mesh).visit([&](const Aabb& b) { return mq.mayHold(b); },
+                                                                            [&](uint32_t tri) {
+                                                                                if (mesh.groups[mesh.triangleGroup[tri]].alphaTested) return false;
+                                                                                const auto& i = mesh.triangles[tri];
+                                                                                out.push_back({o.lsTransform.apply(mesh.positions[i[0]]),
+                                                                                               o.lsTransform.apply(mesh.positions[i[1]]),
+                                                                                               o.lsTransform.apply(mesh.positions[i[2]])});
+                                                                                return out.size() >= kMaxOccluders;
+                                                                            });
+                                         });
+                    });
+                const OccluderSource* occluderSource = occluders ? &*occluders : nullptr;
                 // One caster triangle: true when some receiver reaches its frustum (a
                 // candidate), described in `seen`. Safe to run for several triangles at once.
                 uint64_t tested = 0;  // exact tests, as a sequential walk makes them
@@ -381,6 +413,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     std::optional<ShadowQuery> query;
                     if (!exhaustive) query.emplace(t, lg, L.filterRadius, margin);
                     std::vector<Triangle> ground;  // terrain under a reached part (the terrain rule)
+                    std::vector<GroundOpening> openings;  // squares with none under it
                     auto test = [&](uint32_t k, uint32_t tri) {
                         std::optional<Receiver> made;
                         const std::vector<glm::dvec3>* above = nullptr;  // its part above the ground
@@ -397,7 +430,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         if (!frustum) frustum.emplace(t, lg, L.filterRadius);
                         std::array<glm::dvec3, 2> part;
                         glm::dvec3 at;  // a point of the receiver the shadow reaches (a target for witness rays)
-                        if (!frustum->reaches(r.tri, beta, &part, &at)) return false;
+                        if (!frustum->reaches(r.tri, beta, &part, &at, occluderSource)) return false;
                         // The terrain rule on the part of the receiver the shadow reaches: a
                         // rock half in the ground receives only with its part above ground.
                         // The box of that part against the lowest sample first (cheap), then
@@ -407,7 +440,10 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         if (window.hasTerrain && !r.terrain) {
                             if (underTerrain(window, part, margin)) return false;
                             ground.clear();
-                            if (window.lsTerrainTrianglesOver(part[0].x, part[0].z, part[1].x, part[1].z, ground)) {
+                            openings.clear();
+                            // Squares with no terrain (the world's edge) are openings: the
+                            // rule holds over the rest of the part.
+                            if (window.lsGroundOver(part[0].x, part[0].z, part[1].x, part[1].z, ground, &openings)) {
                                 // Only the ground triangles the part may lie over and not
                                 // wholly deeper than the tolerance under (both in double with
                                 // the margin: a triangle left out holds no point of the part,
@@ -421,7 +457,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                                                        part[1].y < gb.min.y - tol - margin;
                                                             }),
                                              ground.end());
-                                if (!frustum->reachesAboveGround(r.tri, beta, ground, tol, &at)) return false;
+                                if (!frustum->reachesAboveGround(r.tri, beta, ground, openings, tol, &at, occluderSource)) return false;
                             }
                         }
                         candidate = true;

@@ -8,8 +8,11 @@
 //   2. a later hit q lies deeper than depth(p) + bias + slopeBias * tan(theta);
 //   3. q's surface faces the light or is two-sided, q is not under terrain by more than
 //      terrainTolerance, and q is within range and cone.
-// Every comparison carries a margin (kEps) on the side of "no witness", so rounding can
-// only turn a witness into an undecided bit, never create one.
+// Every comparison carries a margin on the side of "no witness", so rounding can only
+// turn a witness into an undecided bit, never create one: depths are recomputed in double
+// on the hit triangles (Tracer::depthOf) and compared with double rounding's margin, so
+// that witnesses a fraction of a millimetre deep count; where that is ill-conditioned,
+// Embree's float depths with a margin of 1e-6 of the window's size.
 // Before that test, targets go 16 at a time through an occlusion packet on the window's
 // opaque-only scene, each ray ending short of the object's bounds: a target whose line is
 // blocked there cannot have p on the group, so it is skipped (a pre-filter; it removes
@@ -104,7 +107,9 @@ struct Tracer {
     RTCScene scene;   // every triangle
     RTCScene opaque;  // without alpha-tested triangles
     const RaycastOptions& opt;
-    double eps;        // metres: margin on depth, range and terrain comparisons
+    double eps;        // metres: margin on depth, range and terrain comparisons made on
+                       // Embree's float distances
+    double exactEps;   // metres: the margin on depths recomputed in double (depthOf)
     double backDist;   // directional lights: ray origins this far before the sample
 
     glm::dvec3 triangleNormal(const WindowObject& o, uint32_t prim) const {
@@ -114,6 +119,39 @@ struct Tracer {
         const glm::dvec3 c = o.lsTransform.apply(o.mesh->positions[tri[2]]);
         glm::dvec3 n = glm::cross(b - a, c - a);
         return o.flipsWinding ? -n : n;
+    }
+
+    // A hit's distance along the line (origin, unit dir) and the margin a comparison of
+    // it needs. Embree intersects float copies of the triangles along the float-rounded
+    // line, within ~eps of the true distance; recomputed here in double against the hit
+    // triangle's window-local vertices, the error is double rounding's, far below
+    // exactEps. That is what lets a witness through the thin places (the terrain's
+    // shadow on the 1 cm band of a half-buried rock is a fraction of a millimetre deep,
+    // less than eps). Kept as Embree's value with eps, the wide margin, when the line
+    // meets the plane within 1e-3 of edge-on (the double value is ill-conditioned there)
+    // or outside the triangle in double (the float hit was on the rounded copy only).
+    struct Depth {
+        double t;
+        double margin;
+    };
+    Depth depthOf(const glm::dvec3& origin, const glm::dvec3& dir, const Hit& h) const {
+        const Depth coarse{double(h.t), eps};
+        const WindowObject& o = w.objects[h.object];
+        const auto& tri = o.mesh->triangles[h.prim];
+        const glm::dvec3 a = o.lsTransform.apply(o.mesh->positions[tri[0]]);
+        const glm::dvec3 e1 = o.lsTransform.apply(o.mesh->positions[tri[1]]) - a;
+        const glm::dvec3 e2 = o.lsTransform.apply(o.mesh->positions[tri[2]]) - a;
+        const glm::dvec3 pv = glm::cross(dir, e2);
+        const double det = glm::dot(e1, pv);  // -dir . (e1 x e2)
+        if (!(std::abs(det) > 1e-3 * glm::length(glm::cross(e1, e2)))) return coarse;
+        const glm::dvec3 tv = origin - a;
+        const double u = glm::dot(tv, pv) / det;
+        const glm::dvec3 qv = glm::cross(tv, e1);
+        const double v = glm::dot(dir, qv) / det;
+        if (!(u >= 0 && v >= 0 && u + v <= 1)) return coarse;
+        const double t = glm::dot(e2, qv) / det;
+        if (!(std::abs(t - coarse.t) <= eps)) return coarse;
+        return {t, exactEps};
     }
 
     const PrimitiveGroup& groupOf(const Hit& h) const {
@@ -272,14 +310,16 @@ struct Tracer {
         ++*raysCast;
         if (!first || first->object != object || w.objects[object].mesh->triangleGroup[first->prim] != group)
             return std::nullopt;
-        const double tp = first->t;
+        const Depth dp = depthOf(origin, dir, *first);
+        const double tp = dp.t;
         const glm::dvec3 p = origin + dir * tp;
         if (!withinReach(L, p)) return std::nullopt;
 
-        // q: the receivers behind p along the same line, nearest first, from beyond the bias.
+        // q: the receivers behind p along the same line, nearest first, from where Embree
+        // may place one more than the bias behind (its distances are within eps).
         RTCIntersectContext plain;
         rtcInitIntersectContext(&plain);
-        float tnear = float(tp + L.bias + eps);
+        float tnear = float(tp + L.bias - eps);
         for (int k = 0; k < opt.maxHitsPerRay; ++k) {
             std::optional<Hit> next = closestHit(&plain, origin, dir, tnear, float(tfar));
             ++*raysCast;
@@ -287,8 +327,10 @@ struct Tracer {
             const Hit& h = *next;
             // Skip past this surface (and any coincident with it) for the next step.
             tnear = float(double(h.t) + 0.5 * eps);
-            const double gap = double(h.t) - tp;
-            if (!(gap > L.bias + eps)) continue;
+            const Depth dq = depthOf(origin, dir, h);
+            const double margin = std::max(dp.margin, dq.margin);
+            const double gap = dq.t - tp;
+            if (!(gap > L.bias + margin)) continue;
             const WindowObject& ro = w.objects[h.object];
             const PrimitiveGroup& rg = ro.mesh->groups[ro.mesh->triangleGroup[h.prim]];
             glm::dvec3 n = triangleNormal(ro, h.prim);
@@ -300,13 +342,13 @@ struct Tracer {
             if (L.slopeBias > 0) {
                 if (!(c > 1e-6)) continue;
                 const double tanTheta = std::sqrt(std::max(0.0, 1 - c * c)) / c;
-                if (!(gap > L.bias + L.slopeBias * tanTheta + eps)) continue;
+                if (!(gap > L.bias + L.slopeBias * tanTheta + margin)) continue;
             }
-            const glm::dvec3 q = origin + dir * double(h.t);
+            const glm::dvec3 q = origin + dir * dq.t;
             if (!withinReach(L, q)) continue;
             if (w.hasTerrain && ro.kind != ChunkObject::Kind::Terrain) {
                 std::optional<double> ground = w.lsTerrainHeight(q.x, q.z);
-                if (ground && !(q.y >= *ground - w.terrainTolerance + eps)) continue;
+                if (ground && !(q.y >= *ground - w.terrainTolerance + dq.margin)) continue;
             }
             Witness wit;
             wit.wsOrigin = origin + w.wsOrigin;
@@ -356,10 +398,16 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
         // Margin: well above float rounding of window-local coordinates (~6e-8 relative).
         const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
         const double diag = glm::length(window.lsBounds.max - window.lsBounds.min);
-        Tracer tracer{window, scene.all(), scene.opaque(), im.opt, 1e-6 * (std::max({ext.x, ext.y, ext.z}) + diag) + 1e-6, diag + 1.0};
+        // Depths recomputed in double: 1e-9 of the same scale, far above double rounding
+        // (depthOf keeps the float value where the line is nearly edge-on).
+        const double scale = std::max({ext.x, ext.y, ext.z}) + diag;
+        Tracer tracer{window, scene.all(), scene.opaque(), im.opt, 1e-6 * scale + 1e-6, 1e-9 * scale + 1e-12, diag + 1.0};
         for (const Light& L : window.lsLights)
             if (L.type != LightType::Directional)
+            {
                 tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
+                tracer.exactEps = std::max(tracer.exactEps, 1e-9 * (glm::length(L.position) + L.range) + 1e-12);
+            }
 
         std::atomic<uint64_t> rays{0}, kept{0}, examined{0};
         // One pass: every search's targets, each light it asks for that is still undecided.

@@ -164,18 +164,35 @@ TEST(ExactFrustum, ReachesAboveGroundCountsOnlyWhatIsNotBuried) {
         return std::vector<Triangle>{{glm::dvec3(-5, h, -5), glm::dvec3(-5, h, 5), glm::dvec3(5, h, 5)},
                                      {glm::dvec3(-5, h, -5), glm::dvec3(5, h, -5), glm::dvec3(5, h, 5)}};
     };
-    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, ground(0.0), 0.0));    // its top half is above
-    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, ground(1.5), 0.0));   // all buried
-    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, ground(1.5), 0.49));  // deeper than the tolerance
-    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, ground(1.5), 0.51));   // its top within it
-    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, ground(1.0), 0.0));    // touching the surface counts
+    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, ground(0.0), {}, 0.0));    // its top half is above
+    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, ground(1.5), {}, 0.0));   // all buried
+    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, ground(1.5), {}, 0.49));  // deeper than the tolerance
+    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, ground(1.5), {}, 0.51));   // its top within it
+    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, ground(1.0), {}, 0.0));    // touching the surface counts
     // The bias still applies: more than 2 m behind the caster (y = 2) is under the ground.
-    EXPECT_TRUE(f.reachesAboveGround(wall, 1.9, ground(0.0), 0.0));
-    EXPECT_FALSE(f.reachesAboveGround(wall, 2.0, ground(0.0), 0.0));
+    EXPECT_TRUE(f.reachesAboveGround(wall, 1.9, ground(0.0), {}, 0.0));
+    EXPECT_FALSE(f.reachesAboveGround(wall, 2.0, ground(0.0), {}, 0.0));
     // Ground that does not lie under the reached part decides nothing (the caller checks
     // coverage): here it is beside it, so no point is found above it.
     const std::vector<Triangle> beside = {{glm::dvec3(3, 5, 3), glm::dvec3(3, 5, 4), glm::dvec3(4, 5, 3)}};
-    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, beside, 0.0));
+    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, beside, {}, 0.0));
+}
+
+// A square with no terrain (the world's edge) is an opening: over it every height
+// receives, and nowhere else.
+TEST(ExactFrustum, ReachesAboveGroundOverAnOpeningAtAnyHeight) {
+    const Triangle caster = {glm::dvec3(0, 2, 0), glm::dvec3(0, 2, 1), glm::dvec3(1, 2, 0)};
+    const ExactFrustum f(caster, kDown, 0.0);
+    const Triangle wall = {glm::dvec3(0.2, -1, 0.3), glm::dvec3(0.4, 1, 0.3), glm::dvec3(0.6, -1, 0.3)};
+    // Ground at y = 1.5 over x <= 0.5 only: the wall is buried there.
+    const std::vector<Triangle> west = {{glm::dvec3(-5, 1.5, -5), glm::dvec3(-5, 1.5, 5), glm::dvec3(0.5, 1.5, 5)},
+                                        {glm::dvec3(-5, 1.5, -5), glm::dvec3(0.5, 1.5, -5), glm::dvec3(0.5, 1.5, 5)}};
+    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, west, {}, 0.0));
+    // The rest of the wall's column (x in [0.5, 0.7] at z = 0.3) over an opening: reached.
+    EXPECT_TRUE(f.reachesAboveGround(wall, 0.0, west, {GroundOpening{0.5, -5, 5, 5}}, 0.0));
+    // An opening beside the part reached decides nothing.
+    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, west, {GroundOpening{0.8, -5, 5, 5}}, 0.0));
+    EXPECT_FALSE(f.reachesAboveGround(wall, 0.0, west, {GroundOpening{-5, 0.5, 5, 5}}, 0.0));
 }
 
 // --- Scenes through the pipeline ----------------------------------------------------------

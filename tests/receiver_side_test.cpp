@@ -56,12 +56,12 @@ SpaceBuilder ridgeWithStoneBeyond() {
 // Flat ground at y = 0 with a 30 cm plate facing up 5 mm under it (within the terrain
 // tolerance of 1 cm, so it receives), a slanted sun without bias: the ground shades the
 // plate, and nothing else is behind the ground anywhere.
-SpaceBuilder plateInTheBand() {
+SpaceBuilder plateInTheBand(double plateY = -0.005) {
     SpaceBuilder b;
     b.addLight(LightSpec::directional("sun", {0.3, -1.0, 0.2}));
     b.addFlatTerrain(0, 0, 0.0);
     b.addMesh("plate", MeshSpec::quad({-0.15, 0, -0.15}, {-0.15, 0, 0.15}, {0.15, 0, 0.15}, {0.15, 0, -0.15}));
-    b.addModel("plate", Affine::translation({41.3, -0.005, 57.7}));
+    b.addModel("plate", Affine::translation({41.3, plateY, 57.7}));
     return b;
 }
 
@@ -134,11 +134,7 @@ TEST(ReceiverSide, GeometryCandidateIsWhereTheNextWitnessRayGoes) {
 // Deeper than the tolerance, the plate receives nothing (the terrain rule): no target is
 // placed on it, and the terrain is proved 0 as before.
 TEST(ReceiverSide, PlateUnderTheBandGetsNoTargetAndTerrainIsCulled) {
-    SpaceBuilder b;
-    b.addLight(LightSpec::directional("sun", {0.3, -1.0, 0.2}));
-    b.addFlatTerrain(0, 0, 0.0);
-    b.addMesh("plate", MeshSpec::quad({-0.15, 0, -0.15}, {-0.15, 0, 0.15}, {0.15, 0, 0.15}, {0.15, 0, -0.15}));
-    b.addModel("plate", Affine::translation({41.3, -0.02, 57.7}));
+    const SpaceBuilder b = plateInTheBand(-0.02);
     const fs::path dir = freshTestDir() / "space";
     const cli::BakeResult r = bakeWith(b, dir, 2048);
     const Decision* d = findDecision(r, b.locateObjects().at(SpaceBuilder::terrainKey(0, 0)), 0, 0);
@@ -181,4 +177,17 @@ TEST(ReceiverSide, TargetsAreDeterministicBoundedAndReachSmallReceivers) {
             EXPECT_FALSE(raycast::isLargeCaster(w.objects[k], 0, 256, 0.5));
         }
     }
+}
+
+// The plate 9.8 mm under the ground: 0.2 mm inside the 1 cm band, less than the float
+// margin the raycast stage used to put on Embree's depths (1e-6 of the window's size,
+// ~0.5 mm here). Depths recomputed in double find the witness (it was left undecided).
+TEST(ReceiverSide, WitnessAFractionOfAMillimetreInsideTheBandIsFound) {
+    const SpaceBuilder b = plateInTheBand(-0.0098);
+    const cli::BakeResult r = bakeWith(b, freshTestDir() / "space", 2048);
+    const Decision* d = findDecision(r, b.locateObjects().at(SpaceBuilder::terrainKey(0, 0)), 0, 0);
+    ASSERT_NE(d, nullptr);
+    EXPECT_EQ(d->verdict, Verdict::Kept) << d->stage << ": " << d->reason();
+    ASSERT_NE(d->witness(), nullptr);
+    EXPECT_NEAR(d->witness()->wsQ.y, -0.0098, 1e-6);
 }
