@@ -149,9 +149,9 @@ public:
     }
     ~ReceiverRules() {
         for (size_t k = 0; k < tables_.size(); ++k) {
-            Entry* table = tables_[k].load(std::memory_order_relaxed);
+            std::atomic<Block*>* table = tables_[k].load(std::memory_order_relaxed);
             if (!table) continue;
-            for (size_t i = 0; i < w_.objects[k].mesh->triangles.size(); ++i) delete table[i].part.load(std::memory_order_relaxed);
+            for (size_t b = 0; b < blockCount(k); ++b) delete table[b].load(std::memory_order_relaxed);
             delete[] table;
         }
     }
@@ -163,18 +163,25 @@ public:
     // bound there; check it only when the result is >= 0).
     template <class Make>
     double beta(uint32_t object, uint32_t triangle, const Make& receiver, const std::vector<glm::dvec3>** above = nullptr) const {
-        Entry* table = tables_[object].load(std::memory_order_acquire);
+        // Two levels, each made on first touch: a dense mesh's queries touch a few of its
+        // 100k+ triangles, and a table of them all, made and cleared per object, window and
+        // light, was most of the stage's time on world D (issue 13).
+        std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
         if (!table) {
-            const size_t n = w_.objects[object].mesh->triangles.size();
-            auto* fresh = new Entry[n];
-            for (size_t i = 0; i < n; ++i) {
-                fresh[i].beta.store(kUnknown, std::memory_order_relaxed);
-                fresh[i].part.store(nullptr, std::memory_order_relaxed);
-            }
+            const size_t n = blockCount(object);
+            auto* fresh = new std::atomic<Block*>[n];
+            for (size_t i = 0; i < n; ++i) fresh[i].store(nullptr, std::memory_order_relaxed);
             if (tables_[object].compare_exchange_strong(table, fresh, std::memory_order_acq_rel)) table = fresh;
             else delete[] fresh;  // another thread's table won; `table` now holds it
         }
-        Entry& e = table[triangle];
+        std::atomic<Block*>& slot = table[triangle / kBlock];
+        Block* block = slot.load(std::memory_order_acquire);
+        if (!block) {
+            auto* fresh = new Block;
+            if (slot.compare_exchange_strong(block, fresh, std::memory_order_acq_rel)) block = fresh;
+            else delete fresh;
+        }
+        Entry& e = block->entries[triangle % kBlock];
         double b = e.beta.load(std::memory_order_acquire);  // after the part it publishes
         if (b == kUnknown) {
             b = compute(receiver(), e);
@@ -186,10 +193,18 @@ public:
 
 private:
     static constexpr double kUnknown = -2.0;  // every computed value is -1 or >= 0
+    static constexpr size_t kBlock = 64;      // triangles per block of the table
     struct Entry {
-        std::atomic<double> beta;
-        std::atomic<const std::vector<glm::dvec3>*> part;  // owned; set before beta
+        std::atomic<double> beta{kUnknown};
+        std::atomic<const std::vector<glm::dvec3>*> part{nullptr};  // owned; set before beta
     };
+    struct Block {
+        Entry entries[kBlock];
+        ~Block() {
+            for (Entry& e : entries) delete e.part.load(std::memory_order_relaxed);
+        }
+    };
+    size_t blockCount(size_t object) const { return (w_.objects[object].mesh->triangles.size() + kBlock - 1) / kBlock; }
     double compute(const Receiver& r, Entry& e) const {
         // Facing: a one-sided receiver the light meets from behind or edge-on gets nothing.
         if (!r.twoSided && exactFacing(r.tri, r.mirrored, lg_) <= 0) return -1;
@@ -226,7 +241,7 @@ private:
     LightGeometry lg_;
     double margin_;
     bool bound_;
-    mutable std::vector<std::atomic<Entry*>> tables_;
+    mutable std::vector<std::atomic<std::atomic<Block*>*>> tables_;
 };
 
 std::string worldPoint(const glm::dvec3& ls, const glm::dvec3& origin) {
@@ -325,14 +340,22 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
             const Task& task = tasks[ti];
             const ObjectVerdicts& ov = cv.objects[task.object];
             const WindowObject& wo = window.objects[size_t(ov.windowObject)];
-            std::vector<Triangle> casters;
-            for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
-                if (wo.mesh->triangleGroup[t] != uint32_t(task.group)) continue;
-                const auto& i = wo.mesh->triangles[t];
-                const glm::dvec3 &a = wo.mesh->positions[i[0]], &b = wo.mesh->positions[i[1]], &c = wo.mesh->positions[i[2]];
-                if (!hasRepeatedVertex(a, b, c))
-                    casters.push_back({wo.lsTransform.apply(a), wo.lsTransform.apply(b), wo.lsTransform.apply(c)});
-            }
+            // The group's triangles placed in the window, made on first use: only the
+            // exhaustive reference and a proof's note need them all (the walk below maps
+            // the ones it reaches; a dense rock's 180,000 were most of the stage's time).
+            std::optional<std::vector<Triangle>> placed;
+            auto casterTriangles = [&]() -> const std::vector<Triangle>& {
+                if (placed) return *placed;
+                placed.emplace();
+                for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
+                    if (wo.mesh->triangleGroup[t] != uint32_t(task.group)) continue;
+                    const auto& i = wo.mesh->triangles[t];
+                    const glm::dvec3 &a = wo.mesh->positions[i[0]], &b = wo.mesh->positions[i[1]], &c = wo.mesh->positions[i[2]];
+                    if (!hasRepeatedVertex(a, b, c))
+                        placed->push_back({wo.lsTransform.apply(a), wo.lsTransform.apply(b), wo.lsTransform.apply(c)});
+                }
+                return *placed;
+            };
             for (int l = 0; l < cv.lightCount; ++l) {
                 Decision& d = cv.at(task.object, task.group, l);
                 if (!wanted(d)) continue;
@@ -347,6 +370,16 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 // (both levels of the broad phase), until it returns true.
                 // `objectMay(k)`: false when no receiver of object k can be behind (then its
                 // mesh tree is not walked).
+                // A mesh-tree node's box placed in the window (its corners mapped; the
+                // rounding is far inside the margin) lies wholly deeper than the terrain
+                // tolerance under the lowest ground under it.
+                auto nodeBuried = [&](const WindowObject& o, const Aabb& msBox) {
+                    Aabb ls;
+                    for (int c = 0; c < 8; ++c)
+                        ls.extend(o.lsTransform.apply({c & 1 ? msBox.max.x : msBox.min.x, c & 2 ? msBox.max.y : msBox.min.y,
+                                                       c & 4 ? msBox.max.z : msBox.min.z}));
+                    return underTerrain(window, {ls.min, ls.max}, margin);
+                };
                 auto forReceivers = [&](const ShadowQuery& q, const Aabb& qBox, const auto& test,
                                         const auto& objectMay) {
                     return objectTree.visit([&](const Aabb& b) { return overlaps(b, qBox) && q.mayHold(b); },
@@ -356,8 +389,13 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                                 // Range is a distance: every triangle of a box beyond it is too.
                                                 if (local && boxBeyondRange(L, o.lsBounds)) return false;
                                                 const ShadowQuery::InMesh mq = q.inMesh(o.lsTransform);
-                                                return trees_.tree(*o.mesh).visit([&](const Aabb& b) { return mq.mayHold(b); },
-                                                                                  [&](uint32_t tri) { return test(k, tri); });
+                                                // The terrain rule per node: a subtree whose box lies wholly deeper
+                                                // than the tolerance under the ground holds no receiver (a dense
+                                                // rock's buried half, under every terrain triangle's column).
+                                                const bool buriable = window.hasTerrain && o.kind != ChunkObject::Kind::Terrain;
+                                                return trees_.tree(*o.mesh).visit(
+                                                    [&](const Aabb& b) { return mq.mayHold(b) && !(buriable && nodeBuried(o, b)); },
+                                                    [&](uint32_t tri) { return test(k, tri); });
                                             });
                 };
                 // Receiver triangle `tri` of object `k` (three distinct vertices) and its
@@ -374,8 +412,9 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 // receiver column is (the light reversed). The exact tests then drop a part
                 // one of them shades wholly (no caster point of it lit). Buried parts of the
                 // objects are not in the tree's boxes: fewer occluders, never a wrong one.
+                // The exhaustive reference uses the same source, so the two stay comparable.
                 std::optional<OccluderSource> occluders;
-                if (!local && !(L.filterRadius > 0) && !exhaustive)
+                if (!local && !(L.filterRadius > 0))
                     occluders.emplace([&](const std::array<glm::dvec3, 2>& box, std::vector<Triangle>& out) {
                         constexpr size_t kMaxOccluders = 256;  // enough for a part a fraction of a cell wide
                         LightGeometry back = lg;
@@ -557,7 +596,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     for (const auto& [position, n] : testsAt)
                         if (position <= first.load()) tested += n;
                 } else {
-                    for (const Triangle& t : casters)
+                    for (const Triangle& t : casterTriangles())
                         if ((candidate = castsOnSomething(t, seen, tested, seenAt))) break;
                 }
                 tests += tested;
@@ -574,6 +613,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         contradictionAt = wo.label + " group " + std::to_string(task.group) + " light " + std::to_string(l + 1);
                     continue;
                 }
+                const std::vector<Triangle>& casters = casterTriangles();
                 Aabb volume;
                 for (const Triangle& t : casters) volume.extend(frustumBox(t, L, limits, margin));
                 decide(d, Verdict::Culled, "geometry",
