@@ -36,6 +36,9 @@ namespace {
 constexpr uint32_t kClusterAtLeast = 8;
 // Caster subtrees of at least this many triangles are walked in parallel.
 constexpr uint32_t kParallelCasters = 256;
+// Receiver meshes of at least this many triangles have their tree's nodes tested against
+// the terrain (pruning buried subtrees); smaller ones only at their leaves.
+constexpr size_t kBuriedNodesFrom = 1024;
 
 struct Receiver {
     Triangle tri;  // window-local
@@ -391,8 +394,10 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                                 const ShadowQuery::InMesh mq = q.inMesh(o.lsTransform);
                                                 // The terrain rule per node: a subtree whose box lies wholly deeper
                                                 // than the tolerance under the ground holds no receiver (a dense
-                                                // rock's buried half, under every terrain triangle's column).
-                                                const bool buriable = window.hasTerrain && o.kind != ChunkObject::Kind::Terrain;
+                                                // rock's buried half, under every terrain triangle's column). Small
+                                                // meshes skip it: their leaves' rules are cached and cost less.
+                                                const bool buriable = window.hasTerrain && o.kind != ChunkObject::Kind::Terrain &&
+                                                                      o.mesh->triangles.size() >= kBuriedNodesFrom;
                                                 return trees_.tree(*o.mesh).visit(
                                                     [&](const Aabb& b) { return mq.mayHold(b) && !(buriable && nodeBuried(o, b)); },
                                                     [&](uint32_t tri) { return test(k, tri); });
