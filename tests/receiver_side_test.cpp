@@ -78,10 +78,34 @@ struct Loaded {
     BakeWindow window;
 };
 
-// The terrain's bit: undecided with the terrain's own samples alone (they miss the small
-// receiver's shadow), proved 1 by the receiver-side search; returns its witness.
-Witness onlyReceiverSideFinds(const SpaceBuilder& b) {
-    const ObjectLocation terrain = b.locateObjects().at(SpaceBuilder::terrainKey(0, 0));
+// The ridge of ridgeWithStoneBeyond as a model (a cliff or hill modelled as a mesh, no
+// terrain): the receiver-side search serves any large continuous caster.
+SpaceBuilder meshRidgeWithStoneBeyond(std::string* ridge) {
+    SpaceBuilder b;
+    b.addLight(LightSpec::directional("sun", {1.0, -0.3, 0.0}));
+    MeshSpec m;
+    const int g = m.addGroup(GroupSpec{});
+    const int n = 10;  // cells of 10 m, as the terrain's 11 x 11 samples
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) m.addVertex({i * 10.0, i * 10.0 < 50 ? 0.0 : 0.4 * (i * 10.0 - 50), j * 10.0});
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const int a = j * (n + 1) + i, c = a + n + 1;
+            m.addTriangle(a, c, a + 1, g);  // front up
+            m.addTriangle(a + 1, c, c + 1, g);
+        }
+    b.addMesh("ridge", m);
+    *ridge = b.addModel("ridge", Affine::translation({0, 0, 0}));
+    b.addMesh("stone", MeshSpec::box({-0.15, -0.15, -0.15}, {0.15, 0.15, 0.15}));
+    b.addModel("stone", Affine::translation({110.0, -1.69, 36.1}));
+    return b;
+}
+
+// The caster's bit (the terrain's by default): undecided with its own samples alone (they
+// miss the small receiver's shadow), proved 1 by the receiver-side search; returns its
+// witness.
+Witness onlyReceiverSideFinds(const SpaceBuilder& b, const std::string& casterKey = SpaceBuilder::terrainKey(0, 0)) {
+    const ObjectLocation terrain = b.locateObjects().at(casterKey);
     {
         const cli::BakeResult r = bakeWith(b, freshTestDir("-off") / "space", 0, false);
         const Decision* d = findDecision(r, terrain, 0, 0);
@@ -105,6 +129,15 @@ Witness onlyReceiverSideFinds(const SpaceBuilder& b) {
 TEST(ReceiverSide, RidgeShadowOnAStoneIsFoundFromTheStone) {
     const Witness w = onlyReceiverSideFinds(ridgeWithStoneBeyond());
     EXPECT_NE(w.receiver.find("model"), std::string::npos) << w.receiver;  // q on the stone
+    EXPECT_NEAR(w.wsQ.x, 109.85, 0.2);
+    EXPECT_LT(w.wsP.x, 100.0);
+}
+
+TEST(ReceiverSide, RidgeModelledAsAMeshIsFoundFromTheStoneToo) {
+    std::string ridge;
+    const SpaceBuilder b = meshRidgeWithStoneBeyond(&ridge);
+    const Witness w = onlyReceiverSideFinds(b, ridge);
+    EXPECT_NE(w.receiver.find("model"), std::string::npos) << w.receiver;
     EXPECT_NEAR(w.wsQ.x, 109.85, 0.2);
     EXPECT_LT(w.wsP.x, 100.0);
 }
