@@ -343,21 +343,18 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
             const Task& task = tasks[ti];
             const ObjectVerdicts& ov = cv.objects[task.object];
             const WindowObject& wo = window.objects[size_t(ov.windowObject)];
-            // The group's triangles placed in the window, made on first use: only the
-            // exhaustive reference and a proof's note need them all (the walk below maps
-            // the ones it reaches; a dense rock's 180,000 were most of the stage's time).
-            std::optional<std::vector<Triangle>> placed;
-            auto casterTriangles = [&]() -> const std::vector<Triangle>& {
-                if (placed) return *placed;
-                placed.emplace();
+            // Calls f(triangle placed in the window) for each triangle of the group with
+            // three distinct vertices. Only the exhaustive reference and a proof's note need
+            // them all: the walk below maps the ones it reaches (placing and storing a dense
+            // rock's 180,000 was most of the stage's time on world D).
+            auto forCasterTriangles = [&](const auto& f) {
                 for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
                     if (wo.mesh->triangleGroup[t] != uint32_t(task.group)) continue;
                     const auto& i = wo.mesh->triangles[t];
                     const glm::dvec3 &a = wo.mesh->positions[i[0]], &b = wo.mesh->positions[i[1]], &c = wo.mesh->positions[i[2]];
-                    if (!hasRepeatedVertex(a, b, c))
-                        placed->push_back({wo.lsTransform.apply(a), wo.lsTransform.apply(b), wo.lsTransform.apply(c)});
+                    if (!hasRepeatedVertex(a, b, c) && f(Triangle{wo.lsTransform.apply(a), wo.lsTransform.apply(b), wo.lsTransform.apply(c)}))
+                        return;
                 }
-                return *placed;
             };
             for (int l = 0; l < cv.lightCount; ++l) {
                 Decision& d = cv.at(task.object, task.group, l);
@@ -601,8 +598,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     for (const auto& [position, n] : testsAt)
                         if (position <= first.load()) tested += n;
                 } else {
-                    for (const Triangle& t : casterTriangles())
-                        if ((candidate = castsOnSomething(t, seen, tested, seenAt))) break;
+                    forCasterTriangles([&](const Triangle& t) { return candidate = castsOnSomething(t, seen, tested, seenAt); });
                 }
                 tests += tested;
                 if (candidate) {
@@ -618,11 +614,15 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         contradictionAt = wo.label + " group " + std::to_string(task.group) + " light " + std::to_string(l + 1);
                     continue;
                 }
-                const std::vector<Triangle>& casters = casterTriangles();
                 Aabb volume;
-                for (const Triangle& t : casters) volume.extend(frustumBox(t, L, limits, margin));
+                size_t casterCount = 0;
+                forCasterTriangles([&](const Triangle& t) {
+                    volume.extend(frustumBox(t, L, limits, margin));
+                    ++casterCount;
+                    return false;
+                });
                 decide(d, Verdict::Culled, "geometry",
-                       "no receiver in the shadow volume (" + std::to_string(casters.size()) +
+                       "no receiver in the shadow volume (" + std::to_string(casterCount) +
                            " caster triangles; volume within " + worldBox(volume, window.wsOrigin) + ")");
                 ++culled;
             }
