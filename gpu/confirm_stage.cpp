@@ -350,6 +350,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         // A caster triangle in a tree node whose reach lies outside the view gives no
         // fragment there (a cube face of a point light sees a sixth of the casters).
         uint32_t flagged = UINT32_MAX;
+        vp.casterPieces.reserve(casters.size());  // about one piece a triangle: no regrowth (dense groups)
         for (const Caster& c : casters) {
             const WindowObject& o = w.objects[c.object];
             if (c.object != flagged) {
@@ -503,6 +504,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
             if (vp.misses(corners.data(), 8, dilatePx)) return;  // nothing of it reaches this view's casters
             for (const Sheet& s : surfaces[i].sheets) {
                 SheetPieces p;
+                p.pieces.reserve(s.triangles.size() + s.cracks.size());  // about one piece each: no regrowth
                 for (const TriRef& tr : s.triangles) {
                     const auto& tri = w.objects[tr.object].mesh->triangles[tr.triangle];
                     const glm::dvec3 &a = position(tr.object, tri[0]), &b = position(tr.object, tri[1]),
@@ -529,6 +531,8 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
                     if (r.misc[2] == 0.0f) sheetNear = std::min(sheetNear, double(r.plane2[1]));
                 mask.depthRange(p.rect, casterNear, casterFar);
                 if (sheetNear > casterFar + 1e-3 * (1 + std::abs(casterFar))) continue;
+                // Likewise piece by piece, for sheets too large for one depth range.
+                if (behindCasters(p.pieces, mask, view)) continue;
                 out.sheets.push_back(std::move(p));
             }
             for (const TriRef& tr : surfaces[i].receivers) {

@@ -828,6 +828,13 @@ void expectSameCounts(const std::vector<NamedScene>& scenes, const gpu::GpuConfi
     }
 }
 
+SpaceBuilder denseJaggedWorld(uint64_t seed);
+
+// Dense jagged worlds, seeds 1 to n.
+void addDenseWorlds(std::vector<NamedScene>& scenes, uint64_t n) {
+    for (uint64_t seed = 1; seed <= n; ++seed) scenes.push_back({"dense", [seed] { return denseJaggedWorld(seed); }});
+}
+
 // Random worlds (odd seeds) and gappy ones (even seeds), seeds first to last.
 void addRandomWorlds(std::vector<NamedScene>& scenes, uint64_t first, uint64_t last) {
     for (uint64_t seed = first; seed <= last; ++seed)
@@ -839,6 +846,7 @@ TEST(GpuConfirm, PruningChangesNoCount) {
     std::vector<NamedScene> scenes = gpuKnownAnswerScenes();
     scenes.push_back({"sample", sampleSpace});
     addRandomWorlds(scenes, 1, 4);
+    addDenseWorlds(scenes, 2);  // sheets behind the casters piece by piece (behindCasters)
     gpu::GpuConfirmOptions pruned;
     pruned.resolution = 128;
     pruned.includeTerrain = true;
@@ -888,10 +896,6 @@ SpaceBuilder denseJaggedWorld(uint64_t seed) {
     return b;
 }
 
-// Dense jagged worlds, seeds 1 to n.
-void addDenseWorlds(std::vector<NamedScene>& scenes, uint64_t n) {
-    for (uint64_t seed = 1; seed <= n; ++seed) scenes.push_back({"dense", [seed] { return denseJaggedWorld(seed); }});
-}
 
 // Sheets that hold no whole pixel block nothing: leaving them out changes no count and no
 // blocked pixel, whole views drawn (on the dense scenes it leaves out many sheets).
