@@ -36,10 +36,12 @@
 // terrainTolerance.
 //
 // Cost: per light and view, the casters' pixels set a region (a bounding rectangle and
-// 8 x 8 pixel cells) outside which nothing is drawn; receivers that lie nowhere behind a
-// caster and occluder sheets that lie nowhere in front of one are left out, and so are
-// sheets whose pixel box holds no whole pixel (they block nothing: pixel_cells.h,
-// holdsWholePixel).
+// 8 x 8 pixel cells) outside which nothing is drawn; only the triangles over those cells are
+// classified and cut into pieces, found through a box tree per unique mesh (mesh_tree.h,
+// confirm_surfaces.h), so a dense neighbour costs what lies over the examined pixels, not
+// its triangle count; receivers that lie nowhere behind a caster and occluder sheets that
+// lie nowhere in front of one are left out, and so are sheets whose pixel box holds no
+// whole pixel (they block nothing: pixel_cells.h, holdsWholePixel).
 #pragma once
 
 #include <memory>
