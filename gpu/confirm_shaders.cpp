@@ -25,9 +25,11 @@ flat out vec4 fPlane;
 flat out vec4 fPlane2;
 flat out vec4 fMisc;
 flat out uint fId;
+flat out uint fPiece;  // the piece's index in its draw
 uniform vec2 uSize;
 void main() {
     fBox = aBox; fE0 = aE0; fE1 = aE1; fE2 = aE2; fPlane = aPlane; fPlane2 = aPlane2; fMisc = aMisc; fId = aId;
+    fPiece = uint(gl_InstanceID);
     vec2 c = gl_VertexID == 0 ? aCover01.xy : gl_VertexID == 1 ? aCover01.zw : gl_VertexID == 2 ? aCover23.xy : aCover23.zw;
     gl_Position = vec4(c / uSize * 2.0 - 1.0, 0.0, 1.0);
 }
@@ -42,6 +44,7 @@ flat in vec4 fPlane;   // x0, y0, s0, a
 flat in vec4 fPlane2;  // b, zmin, zmax, planeValid
 flat in vec4 fMisc;    // dilate, margin, kind
 flat in uint fId;
+flat in uint fPiece;
 uniform int uMode;          // 0 occluder sheet, 1 receivers, 2 caster query (count and record), 3 record only
 uniform bool uPerspective;  // s = 1/z (else s = depth)
 uniform float uDepthEps;    // metres, absolute depth margin
@@ -58,6 +61,9 @@ layout(std430, binding = 1) buffer Records { uvec4 records[]; };
 // all, 0 none), the first free record, the records still free, and the fragments offered
 // (pixels under the threshold; all of them are recorded when they fit).
 layout(std430, binding = 2) buffer Slots { uvec4 slots[]; };
+// Per caster piece of the counting draw (mode 2): 1 when a fragment of it passed. Only
+// those pieces can record a pixel, so the record-only draws (mode 3) draw only them.
+layout(std430, binding = 3) buffer PassedPieces { uint passedPiece[]; };
 layout(location = 0) out vec4 oValue;
 const float BIG = 1e30;
 
@@ -157,7 +163,10 @@ void main() {
         bool behind = uAnyReceiver || rec > zlo + uBias;
         if (uMode == 2 && lit) atomicAdd(counts[2u * fId], 1u);
         if (lit && behind) {
-            if (uMode == 2) atomicAdd(counts[2u * fId + 1u], 1u);
+            if (uMode == 2) {
+                atomicAdd(counts[2u * fId + 1u], 1u);
+                passedPiece[fPiece] = 1u;
+            }
             if (recorded(pix)) {
                 uint k = atomicAdd(slots[fId].w, 1u);
                 if (k < slots[fId].z)

@@ -62,9 +62,11 @@
 #include "core/format.h"
 #include "core/light_reach.h"
 #include "gpu/confirm_shaders.h"
+#include "gpu/confirm_surfaces.h"
 #include "gpu/conservative.h"
 #include "gpu/gl_api.h"
 #include "gpu/light_view.h"
+#include "gpu/mesh_tree.h"
 #include "gpu/pixel_cells.h"
 
 namespace shadowcull::gpu {
@@ -72,30 +74,6 @@ namespace shadowcull::gpu {
 namespace {
 
 constexpr float kBig = 1e30f;
-
-struct UnionFind {
-    std::vector<uint32_t> parent;
-    explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
-    uint32_t find(uint32_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    }
-    void unite(uint32_t a, uint32_t b) {
-        a = find(a), b = find(b);
-        if (a != b) parent[std::max(a, b)] = std::min(a, b);
-    }
-};
-
-struct TriRef {
-    uint32_t object, triangle;
-};
-
-// A connected opaque sheet of one object: triangles facing the same way (so the same
-// orientation on screen), joined across edges shared by exactly two of them.
-struct Sheet {
-    std::vector<TriRef> triangles;
-    std::vector<TriRef> cracks;  // (object, edge index)
-};
 
 struct Caster {
     uint32_t object, triangle, id;
@@ -114,15 +92,10 @@ struct ViewPrep {
     // No piece made from anything within the hull of pts can reach a caster cell (so
     // keepTouching would drop them all).
     bool misses(const glm::dvec3* pts, size_t n, float dilate) const {
+        if (pb.clipsAway(pts, n)) return true;
         const std::optional<PixelRect> r = hullReach(pts, n, pb, dilate);
         return r && !mask.touches(*r);
     }
-};
-
-// One object's part for one light: its occluder sheets and receiver triangles.
-struct ObjectSurfaces {
-    std::vector<Sheet> sheets;
-    std::vector<TriRef> receivers;
 };
 
 // An occluder sheet's pieces in one view, with the pixel rectangle its fragments can reach.
@@ -144,17 +117,24 @@ struct GpuConfirmStage::Gl {
     GLuint raster = 0, resolve = 0, clear = 0;
     RenderTarget work, occ, recv;
     GLuint vao = 0, vbo = 0, rectVao = 0, rectVbo = 0;
-    GLuint ssbo[3] = {0, 0, 0};  // counts, records, slots (see kConfirmRasterFs)
+    GLuint ssbo[4] = {0, 0, 0, 0};  // counts, records, slots, passed pieces (see kConfirmRasterFs)
+    size_t vboPieces = 0;  // the piece buffer's size: it only grows (reallocating faulted it in anew per view)
+    std::vector<RasterPiece> all;  // a view's pieces, kept for its capacity likewise
     GLint64 maxStorageBlock = 0;  // bytes, GL_MAX_SHADER_STORAGE_BLOCK_SIZE
 };
 
-// Per run: the window's triangles, and the stage's edges per mesh.
+// Per run: the stage's trees and edges per mesh.
 struct GpuConfirmStage::LightWork {
-    const WindowTriangles* tris = nullptr;
+    std::unordered_map<const Mesh*, std::unique_ptr<MeshTree>>& trees;
     std::unordered_map<const Mesh*, std::unique_ptr<MeshEdges>>& edges;
-    const MeshEdges& edgesOf(const Mesh* mesh, const std::vector<uint32_t>& triangles) {
+    const MeshTree& treeOf(const Mesh* mesh) {
+        auto& t = trees[mesh];
+        if (!t) t = std::make_unique<MeshTree>(*mesh);
+        return *t;
+    }
+    const MeshEdges& edgesOf(const Mesh* mesh) {
         auto& e = edges[mesh];
-        if (!e) e = std::make_unique<MeshEdges>(*mesh, triangles);
+        if (!e) e = std::make_unique<MeshEdges>(*mesh, treeOf(mesh).triangles());
         return *e;
     }
 };
@@ -163,7 +143,7 @@ GpuConfirmStage::GpuConfirmStage(GpuConfirmOptions options) : options_(options) 
 GpuConfirmStage::~GpuConfirmStage() = default;  // destroying the context frees its objects
 
 void GpuConfirmStage::forgetMeshes(const std::unordered_set<const Mesh*>& meshes) {
-    for (const Mesh* m : meshes) edges_.erase(m);
+    for (const Mesh* m : meshes) edges_.erase(m), trees_.erase(m);
 }
 
 std::string GpuConfirmStage::glDescription() const { return gl_ ? gl_->session->context->report() : std::string(); }
@@ -221,7 +201,7 @@ Status GpuConfirmStage::ensureGl() {
         gl.VertexAttribDivisor(k, 1);
     }
     gl.BindVertexArray(0);
-    gl.GenBuffers(3, g->ssbo);
+    gl.GenBuffers(4, g->ssbo);
     GLint maxBlock = 0;
     gl.GetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &maxBlock);
     g->maxStorageBlock = maxBlock > 0 ? maxBlock : (16 << 20);
@@ -234,6 +214,7 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     const auto t0 = std::chrono::steady_clock::now();
     groups_.clear();
     viewStats_.clear();
+    trianglesClassified_ = 0;
     // Lights with an undecided bit this stage looks at.
     std::vector<bool> lights(size_t(cv.lightCount), false);
     for (const ObjectVerdicts& ov : cv.objects) {
@@ -248,12 +229,12 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     const FloatModeScope ieee(FloatModeScope::Underflow::Gradual);
     if (Status s = ensureGl(); !s) return s;
     GpuTimer gpuTime(gl_->session->gl);
-    WindowTriangles tris(w);
     // The window slid: keep the edges of the meshes still loaded, drop the others (the
     // terrains of the chunks left behind), so that memory follows the window, not the world.
     const std::unordered_set<const Mesh*> loaded = w.meshes();
     for (auto it = edges_.begin(); it != edges_.end();) it = loaded.count(it->first) ? std::next(it) : edges_.erase(it);
-    LightWork work{&tris, edges_};
+    for (auto it = trees_.begin(); it != trees_.end();) it = loaded.count(it->first) ? std::next(it) : trees_.erase(it);
+    LightWork work{trees_, edges_};
     for (int l = 0; l < cv.lightCount; ++l) {
         if (!lights[size_t(l)]) continue;
         const size_t first = groups_.size();
@@ -272,7 +253,6 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     const Light& L = w.lsLights[size_t(l)];
     const bool persp = L.type != LightType::Directional;
     const int res = options_.resolution;
-    const WindowTriangles& tris = *work.tris;
 
     // The bits to examine: undecided (group, light l) of the centre chunk. Query id = index.
     std::vector<std::vector<int>> queryOf(w.objects.size());
@@ -307,49 +287,56 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     // Perspective: a near plane below all geometry, so clipping there loses nothing of the
     // frustum. Points of the guard frustum (|x|,|y| <= 2tz) with z < near lie within
     // near * sqrt(1 + 8t^2) of the light, less than half the nearest geometry's distance.
+    // Window-local vertices, computed where they are needed (the same bits as
+    // WindowTriangles): the stage looks at few of a dense neighbour's triangles.
+    auto position = [&](uint32_t object, uint32_t vertex) {
+        const WindowObject& o = w.objects[object];
+        return o.lsTransform.apply(o.mesh->positions[vertex]);
+    };
     double nearZ = 0;
     if (persp) {
+        // The nearest triangle, through each mesh's tree: a node no nearer than the nearest
+        // triangle so far holds none nearer (its box holds its triangles with room to spare).
         double dmin = 1e300;
         for (size_t k = 0; k < w.objects.size(); ++k) {
             if (distanceToBox(L.position, w.objects[k].lsBounds) >= dmin) continue;
-            const auto& to = tris.object(k);
-            const auto& mt = w.objects[k].mesh->triangles;
-            for (uint32_t t : to.triangles)
-                dmin = std::min(dmin, pointTriangleDistance(L.position, to.positions[mt[t][0]], to.positions[mt[t][1]],
-                                                            to.positions[mt[t][2]]));
+            const WindowObject& o = w.objects[k];
+            const auto& mt = o.mesh->triangles;
+            work.treeOf(o.mesh).visit(
+                [&](const Aabb& box) { return distanceToBox(L.position, placedBounds(box, o.lsTransform)) < dmin; },
+                [&](uint32_t t) {
+                    dmin = std::min(dmin, pointTriangleDistance(L.position, position(uint32_t(k), mt[t][0]),
+                                                                position(uint32_t(k), mt[t][1]), position(uint32_t(k), mt[t][2])));
+                });
         }
         // Geometry touching the light: no near plane is below it. Leave the bits undecided.
         if (!(dmin > 1e-6 * (L.range + glm::length(L.position) + 1.0))) return Status::ok();
         const double g = 2 * views[0].t;
         nearZ = dmin / (2 * std::sqrt(1 + 2 * g * g));
     }
-    const glm::dvec3 W = glm::normalize(L.direction);
-    auto rayDir = [&](const glm::dvec3& a) { return persp ? a - L.position : W; };
     // With a filter radius in perspective, or skipped objects, receivers are not bounded:
     // only "never lit" can be proved.
     const bool anyReceiver = w.skippedObjects > 0 || (persp && L.filterRadius > 0);
     const double t = views[0].t;
     const double biasEff = persp ? L.bias / std::sqrt(1 + 2 * t * t) : L.bias;
 
-    auto position = [&](uint32_t object, uint32_t vertex) -> const glm::dvec3& {
-        return tris.object(object).positions[vertex];
-    };
 
     // Casters: every triangle of a group examined here, per view with the pixels (8 x 8
     // cells) they reach. The query reads the other passes only at those pixels, so
     // everything is drawn within their bounding rectangle (scissor), and pieces that cannot
     // touch a cell the casters reach are dropped. Other pixels are never read.
-    std::vector<Caster> casters;
+    std::vector<Caster> casters;  // by object, then by triangle
     for (size_t k = 0; k < w.objects.size(); ++k) {
         if (queryOf[k].empty()) continue;
         const Mesh& mesh = *w.objects[k].mesh;
-        for (uint32_t tr : tris.object(k).triangles) {
+        for (uint32_t tr : work.treeOf(&mesh).triangles()) {
             const int id = queryOf[k][mesh.triangleGroup[tr]];
             if (id >= 0) casters.push_back({uint32_t(k), tr, uint32_t(id)});
         }
     }
     std::vector<ViewPrep> preps;
     preps.reserve(views.size());
+    std::vector<char> inView;
     for (const LightView& view : views) {
         ViewPrep& vp = preps.emplace_back(view, nearZ, options_.collectViewStats);
         // Absolute depth margin (metres): far above float rounding of the view's depths.
@@ -360,8 +347,26 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         if (!persp && L.filterRadius > 0)
             vp.dilatePx = float(L.filterRadius *
                                 std::max(view.width / (view.u1 - view.u0), view.height / (view.v1 - view.v0)));
+        // A caster triangle in a tree node whose reach lies outside the view gives no
+        // fragment there (a cube face of a point light sees a sixth of the casters).
+        uint32_t flagged = UINT32_MAX;
+        vp.casterPieces.reserve(casters.size());  // about one piece a triangle: no regrowth (dense groups)
         for (const Caster& c : casters) {
-            const auto& tri = w.objects[c.object].mesh->triangles[c.triangle];
+            const WindowObject& o = w.objects[c.object];
+            if (c.object != flagged) {
+                flagged = c.object;
+                inView.assign(o.mesh->triangles.size(), 0);
+                work.treeOf(o.mesh).visit(
+                    [&](const Aabb& box) {
+                        const std::array<glm::dvec3, 8> corners = placedCorners(box, o.lsTransform);
+                        if (vp.pb.clipsAway(corners.data(), 8)) return false;
+                        const std::optional<PixelRect> r = hullReach(corners.data(), 8, vp.pb, 0.0f);
+                        return !r || !r->isEmpty();
+                    },
+                    [&](uint32_t t) { inView[t] = 1; });
+            }
+            if (!inView[c.triangle]) continue;
+            const auto& tri = o.mesh->triangles[c.triangle];
             vp.pb.triangle(position(c.object, tri[0]), position(c.object, tri[1]), position(c.object, tri[2]), 0.0f,
                            c.id, vp.casterPieces);
         }
@@ -377,105 +382,41 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         vp.mask.finish();
     }
 
-    // The objects that can reach a caster cell in some view. An object whose bounds reach
-    // none gives no piece that keepTouching would keep, so it is left out before any
-    // per-triangle work: the pieces drawn are the same.
+    // The triangles that can reach a caster cell in some view, per object: an object whose
+    // bounds reach none is left out whole, the others are walked down their mesh's tree
+    // (a node whose placed box reaches no caster cell holds no triangle whose pieces
+    // keepTouching would keep). So only what lies over the examined pixels is classified,
+    // and the pieces drawn are the same as from every triangle.
+    auto reachesCasters = [&](const std::array<glm::dvec3, 8>& corners) {
+        return std::any_of(preps.begin(), preps.end(),
+                           [&](const ViewPrep& vp) { return !vp.skip && !vp.misses(corners.data(), 8, vp.dilatePx); });
+    };
     std::vector<uint32_t> near;
+    std::vector<std::vector<uint32_t>> nearTriangles;  // per near object, ascending
     for (size_t k = 0; k < w.objects.size(); ++k) {
-        // The object's bounds (all its triangles, a box at least as large as its
-        // non-degenerate ones'): its window-local triangles are made only if it is near.
-        if (w.objects[k].mesh->triangles.empty() || w.objects[k].lsBounds.empty()) continue;
-        const std::array<glm::dvec3, 8> corners = boxCorners(w.objects[k].lsBounds);
-        if (std::any_of(preps.begin(), preps.end(),
-                        [&](const ViewPrep& vp) { return !vp.skip && !vp.misses(corners.data(), 8, vp.dilatePx); })) {
-            const WindowTriangles::Object& to = tris.object(k);
-            if (to.triangles.empty()) continue;
-            near.push_back(uint32_t(k));
-            work.edgesOf(w.objects[k].mesh, to.triangles);  // built here: read in parallel below
-        }
+        const WindowObject& o = w.objects[k];
+        if (o.mesh->triangles.empty() || o.lsBounds.empty() || !reachesCasters(boxCorners(o.lsBounds))) continue;
+        std::vector<uint32_t> selected;
+        if (options_.treeSelection)
+            work.treeOf(o.mesh).visit([&](const Aabb& box) { return reachesCasters(placedCorners(box, o.lsTransform)); },
+                                      [&](uint32_t t) { selected.push_back(t); });
+        else
+            selected = work.treeOf(o.mesh).triangles();
+        if (selected.empty()) continue;
+        std::sort(selected.begin(), selected.end());
+        near.push_back(uint32_t(k));
+        trianglesClassified_ += selected.size();
+        nearTriangles.push_back(std::move(selected));
+        work.edgesOf(o.mesh);  // built here: read in parallel below
     }
 
-    // Classify the triangles of those objects for this light: occluder sheets and receivers
-    // (in parallel over objects; the order of sheets and receivers is the objects' order).
+    // Their occluder sheets and receivers for this light (in parallel over objects; the
+    // order of sheets and receivers is the objects' order).
     std::vector<ObjectSurfaces> surfaces(near.size());
+    const SurfaceLight surfaceLight{&L, anyReceiver};
     tbb::parallel_for(size_t(0), near.size(), [&](size_t i) {
         const FloatModeScope taskMode(FloatModeScope::Underflow::Gradual);  // as run() (see there)
-        const uint32_t k = near[i];
-        const WindowObject& o = w.objects[k];
-        const Mesh& mesh = *o.mesh;
-        const auto& to = tris.object(k);
-        ObjectSurfaces& out = surfaces[i];
-        const bool terrainRule = w.hasTerrain && o.kind != ChunkObject::Kind::Terrain;
-        std::vector<int8_t> cls(mesh.triangles.size(), 0);  // +1 CCW on screen, -1 CW, 0 not an occluder
-        for (uint32_t tr : to.triangles) {
-            const auto& tri = mesh.triangles[tr];
-            const glm::dvec3 &a = to.positions[tri[0]], &b = to.positions[tri[1]], &c = to.positions[tri[2]];
-            const glm::dvec3 n = glm::cross(b - a, c - a);
-            const glm::dvec3 rd = rayDir(a);
-            // The facing sign is certain beyond this: the cross product's rounding is
-            // relative to |b-a||c-a|, not to |n| (which is small for slivers).
-            const double f = glm::dot(n, rd),
-                         tol = 1e-9 * glm::length(b - a) * glm::length(c - a) * glm::length(rd);
-            const PrimitiveGroup& pg = mesh.groups[mesh.triangleGroup[tr]];
-            // Screen orientation: U x V = -W, so a triangle is counter-clockwise exactly
-            // when its geometric normal points against the light's travel. Triangles of
-            // one class have one orientation; edge-on ones are in no sheet.
-            if (!pg.alphaTested && std::abs(f) > tol) cls[tr] = f < 0 ? 1 : -1;
-            if (!anyReceiver) {
-                const double front = o.flipsWinding ? -f : f;
-                if (pg.twoSided() || front <= tol) {  // not certainly facing away
-                    Aabb tb;
-                    tb.extend(a), tb.extend(b), tb.extend(c);
-                    bool excluded = persp && distanceToBox(L.position, tb) > L.range * (1 + 1e-6) + 1e-6;
-                    if (!excluded && terrainRule) {
-                        const std::optional<double> h = w.lsTerrainMinOver(tb.min.x, tb.min.z, tb.max.x, tb.max.z);
-                        excluded = h && tb.max.y < *h - w.terrainTolerance - 1e-6 * (std::abs(*h) + 1.0);
-                    }
-                    if (!excluded) out.receivers.push_back({k, tr});
-                }
-            }
-        }
-        // Sheets: join triangles of one class across edges shared by exactly two of them
-        // running the edge in opposite directions (they lie on both sides of it).
-        const MeshEdges& edges = *work.edges.at(o.mesh);
-        UnionFind uf(mesh.triangles.size());
-        std::vector<uint8_t> good(edges.count(), 0);  // bit 0: class +1, bit 1: class -1
-        for (size_t e = 0; e < edges.count(); ++e) {
-            for (int c = 0; c < 2; ++c) {
-                const int8_t want = c == 0 ? 1 : -1;
-                int count = 0;
-                uint32_t t1 = 0, t2 = 0;
-                bool f1 = false, f2 = false;
-                for (uint32_t u = edges.start[e]; u < edges.start[e + 1]; ++u) {
-                    const MeshEdges::Use& use = edges.uses[u];
-                    if (cls[use.triangle] != want) continue;
-                    if (count == 0) t1 = use.triangle, f1 = use.forward;
-                    else t2 = use.triangle, f2 = use.forward;
-                    ++count;
-                }
-                if (count == 2 && f1 != f2) {
-                    good[e] |= uint8_t(1u << c);
-                    uf.unite(t1, t2);
-                }
-            }
-        }
-        std::unordered_map<uint32_t, size_t> sheetOfRoot;
-        std::vector<std::pair<uint32_t, size_t>> cracks;  // (edge, sheet)
-        for (uint32_t tr : to.triangles) {
-            if (cls[tr] == 0) continue;
-            const uint32_t root = uf.find(tr);
-            auto [it, inserted] = sheetOfRoot.emplace(root, out.sheets.size());
-            if (inserted) out.sheets.emplace_back();
-            out.sheets[it->second].triangles.push_back({k, tr});
-            const uint8_t bit = uint8_t(cls[tr] > 0 ? 1 : 2);
-            for (int kk = 0; kk < 3; ++kk) {
-                const uint32_t e = edges.edgeOf[3 * size_t(tr) + size_t(kk)];
-                if (!(good[e] & bit)) cracks.push_back({e, it->second});
-            }
-        }
-        std::sort(cracks.begin(), cracks.end());
-        cracks.erase(std::unique(cracks.begin(), cracks.end()), cracks.end());
-        for (const auto& [e, s] : cracks) out.sheets[s].cracks.push_back({k, e});
+        surfaces[i] = objectSurfaces(w, near[i], surfaceLight, *work.edges.at(w.objects[near[i]].mesh), nearTriangles[i]);
     });
 
     // Storage for the query results, accumulated over the views.
@@ -559,10 +500,11 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         tbb::parallel_for(size_t(0), near.size(), [&](size_t i) {
             const FloatModeScope taskMode(FloatModeScope::Underflow::Gradual);  // as run()
             ObjectPieces& out = pieces[i];
-            const std::array<glm::dvec3, 8> corners = boxCorners(tris.object(near[i]).lsBounds);
+            const std::array<glm::dvec3, 8> corners = boxCorners(w.objects[near[i]].lsBounds);
             if (vp.misses(corners.data(), 8, dilatePx)) return;  // nothing of it reaches this view's casters
             for (const Sheet& s : surfaces[i].sheets) {
                 SheetPieces p;
+                p.pieces.reserve(s.triangles.size() + s.cracks.size());  // about one piece each: no regrowth
                 for (const TriRef& tr : s.triangles) {
                     const auto& tri = w.objects[tr.object].mesh->triangles[tr.triangle];
                     const glm::dvec3 &a = position(tr.object, tri[0]), &b = position(tr.object, tri[1]),
@@ -589,6 +531,8 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
                     if (r.misc[2] == 0.0f) sheetNear = std::min(sheetNear, double(r.plane2[1]));
                 mask.depthRange(p.rect, casterNear, casterFar);
                 if (sheetNear > casterFar + 1e-3 * (1 + std::abs(casterFar))) continue;
+                // Likewise piece by piece, for sheets too large for one depth range.
+                if (behindCasters(p.pieces, mask, view)) continue;
                 out.sheets.push_back(std::move(p));
             }
             for (const TriRef& tr : surfaces[i].receivers) {
@@ -624,10 +568,11 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
             }
             if (!placed) batches.push_back({s});
         }
-        std::vector<RasterPiece> all;
+        // One allocation, kept from view to view: growing by doubling copied millions of
+        // 148-byte pieces per view on windows of dense meshes (and faulted in each new block).
+        std::vector<RasterPiece>& all = gl_->all;
+        all.clear();
         {
-            // One allocation: growing by doubling copied millions of 148-byte pieces per view
-            // on windows of dense meshes (and faulted in each new block).
             size_t total = vp.casterPieces.size();
             for (const SheetPieces& s : sp) total += s.pieces.size();
             for (const ObjectPieces& op : pieces) total += op.receivers.size();
@@ -653,8 +598,15 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         const GLint end = GLint(all.size());
 
         // Upload and draw.
+        // The buffer holds the view's pieces and, after them, room for the caster pieces drawn
+        // again (those that passed).
         gl.BindBuffer(GL_ARRAY_BUFFER, gl_->vbo);
-        gl.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(all.size() * sizeof(RasterPiece)), all.data(), GL_STREAM_DRAW);
+        const size_t needed = all.size() + vp.casterPieces.size();
+        if (needed > gl_->vboPieces) {
+            gl_->vboPieces = needed + needed / 4;
+            gl.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(gl_->vboPieces * sizeof(RasterPiece)), nullptr, GL_STREAM_DRAW);
+        }
+        gl.BufferSubData(GL_ARRAY_BUFFER, 0, GLsizeiptr(all.size() * sizeof(RasterPiece)), all.data());
         gl.BindBuffer(GL_ARRAY_BUFFER, gl_->rectVbo);
         gl.BufferData(GL_ARRAY_BUFFER, GLsizeiptr(rects.size() * sizeof(float)), rects.data(), GL_STREAM_DRAW);
         for (GLuint p : {gl_->resolve, gl_->clear}) {
@@ -743,11 +695,35 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, gl_->ssbo[0]);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, gl_->ssbo[1]);
         gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, gl_->ssbo[2]);
+        {
+            const std::vector<uint32_t> zeros(size_t(end - castFirst), 0u);
+            gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, gl_->ssbo[3]);
+            gl.BufferData(GL_SHADER_STORAGE_BUFFER, GLsizeiptr(std::max<size_t>(1, zeros.size()) * 4),
+                          zeros.empty() ? nullptr : zeros.data(), GL_DYNAMIC_COPY);
+            gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+        }
+        gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, gl_->ssbo[3]);
         drawPieces(castFirst, end - castFirst);
         gl.Uniform1i(uMode, 3);  // again if needed: records only, the counts are complete
+        GLsizei again = -1;      // caster pieces that passed, copied after the view's pieces
         while (settleSlots()) {
+            if (again < 0) {
+                // Only a piece with a fragment that passed can record one: the same
+                // fragments, the same tests (mode 3 reads what mode 2 read).
+                std::vector<uint32_t> passed(size_t(end - castFirst));
+                gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, gl_->ssbo[3]);
+                gl.GetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, GLsizeiptr(passed.size() * 4), passed.data());
+                gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+                std::vector<RasterPiece> redraw;
+                for (size_t i = 0; i < passed.size(); ++i)
+                    if (passed[i]) redraw.push_back(all[size_t(castFirst) + i]);
+                gl.BindBuffer(GL_ARRAY_BUFFER, gl_->vbo);
+                gl.BufferSubData(GL_ARRAY_BUFFER, GLintptr(size_t(end) * sizeof(RasterPiece)),
+                                 GLsizeiptr(redraw.size() * sizeof(RasterPiece)), redraw.data());
+                again = GLsizei(redraw.size());
+            }
             uploadSlots();
-            drawPieces(castFirst, end - castFirst);
+            drawPieces(end, again);
             ++stats.gpuPasses;
         }
         gl.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);

@@ -36,10 +36,12 @@
 // terrainTolerance.
 //
 // Cost: per light and view, the casters' pixels set a region (a bounding rectangle and
-// 8 x 8 pixel cells) outside which nothing is drawn; receivers that lie nowhere behind a
-// caster and occluder sheets that lie nowhere in front of one are left out, and so are
-// sheets whose pixel box holds no whole pixel (they block nothing: pixel_cells.h,
-// holdsWholePixel).
+// 8 x 8 pixel cells) outside which nothing is drawn; only the triangles over those cells are
+// classified and cut into pieces, found through a box tree per unique mesh (mesh_tree.h,
+// confirm_surfaces.h), so a dense neighbour costs what lies over the examined pixels, not
+// its triangle count; receivers that lie nowhere behind a caster and occluder sheets that
+// lie nowhere in front of one are left out, and so are sheets whose pixel box holds no
+// whole pixel (they block nothing: pixel_cells.h, holdsWholePixel).
 #pragma once
 
 #include <memory>
@@ -54,6 +56,7 @@
 namespace shadowcull::gpu {
 
 struct MeshEdges;  // gpu/conservative.h
+class MeshTree;    // gpu/mesh_tree.h
 
 struct GpuConfirmOptions {
     int resolution = 1024;         // pixels per side of each light view
@@ -65,6 +68,10 @@ struct GpuConfirmOptions {
     // Occluder sheets whose pixel box holds no whole pixel are left out (pixel_cells.h,
     // holdsWholePixel: they block nothing). false: drawn anyway (tests compare the two).
     bool dropSliverSheets = true;
+    // The triangles of an object near the casters are found through its mesh's tree (only
+    // those over the examined pixels are classified and tested). false: every triangle of
+    // the object is (tests compare the two: the same pieces are drawn).
+    bool treeSelection = true;
 };
 
 // A pixel where the group may be lit with a receiver behind: the light ray through the
@@ -120,6 +127,11 @@ public:
     const std::vector<ConfirmViewStats>& viewStats() const { return viewStats_; }
     // Meshes whose edge adjacency the stage holds (those of the last window it drew).
     size_t meshesWithEdges() const { return edges_.size(); }
+    // Meshes whose box tree the stage holds (likewise).
+    size_t meshesWithTrees() const { return trees_.size(); }
+    // Triangles classified (as occluders or receivers) in the last run, summed over its
+    // lights: those the trees selected over the examined pixels.
+    uint64_t trianglesClassified() const { return trianglesClassified_; }
 
 private:
     struct Gl;
@@ -130,10 +142,15 @@ private:
     std::unique_ptr<Gl> gl_;
     std::vector<GroupPixels> groups_;
     std::vector<ConfirmViewStats> viewStats_;
+    uint64_t trianglesClassified_ = 0;
     // Per mesh of the last window, its edge adjacency, kept while the window slides (it keeps
     // most of its meshes). Keyed by the mesh's address, so one stage serves one loaded space
     // (as the raycast stage's caches do).
     std::unordered_map<const Mesh*, std::unique_ptr<MeshEdges>> edges_;
+    // Per mesh of the last window, its triangles' box tree in mesh coordinates (every
+    // instance's), kept likewise: the triangles that can reach the examined pixels are
+    // found through it (gpu/mesh_tree.h).
+    std::unordered_map<const Mesh*, std::unique_ptr<MeshTree>> trees_;
 };
 
 }  // namespace shadowcull::gpu

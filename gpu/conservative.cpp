@@ -121,6 +121,20 @@ bool PieceBuilder::hullBounds(const glm::dvec3* pts, size_t n, double bounds[4])
     return n > 0;
 }
 
+bool PieceBuilder::clipsAway(const glm::dvec3* pts, size_t n) const {
+    if (!view_.perspective || n == 0) return false;
+    // The clip functions of triangle(), each with the size of its terms for the margin.
+    bool out[5] = {true, true, true, true, true};
+    for (size_t k = 0; k < n; ++k) {
+        const glm::dvec3 v = view_.toView(pts[k]);
+        const double g = guard_, nz = nearZ_;
+        const double f[5] = {v.z - nz, g * v.z - v.x, g * v.z + v.x, g * v.z - v.y, g * v.z + v.y};
+        const double size = std::abs(v.x) + std::abs(v.y) + (1 + g) * std::abs(v.z) + nz;
+        for (int c = 0; c < 5; ++c) out[c] = out[c] && f[c] < -1e-9 * size;
+    }
+    return out[0] || out[1] || out[2] || out[3] || out[4];
+}
+
 void PieceBuilder::emit(const glm::dvec3* v, float dilatePx, float kind, uint32_t id,
                         std::vector<RasterPiece>& out) const {
     glm::dvec2 P[3];

@@ -58,6 +58,13 @@ public:
     // up to rounding. False when they cannot be bounded so: a perspective view with a
     // point not beyond the near plane (clipping there changes the shape).
     bool hullBounds(const glm::dvec3* pts, size_t n, double bounds[4]) const;
+    // True when triangle() and segment() make no piece from anything within the convex hull
+    // of pts: a perspective view with every point outside the same clip plane (behind the
+    // near plane, or beyond a side of the guard band) by more than the rounding of the view
+    // coordinates (the clip functions are affine in the point, so the hull lies outside too).
+    // The parts of a point light's cube that look away from an object, or past it, give it
+    // no piece; hullBounds cannot say so for points behind the near plane.
+    bool clipsAway(const glm::dvec3* pts, size_t n) const;
     const LightView& view() const { return view_; }
 
 private:

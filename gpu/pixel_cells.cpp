@@ -40,6 +40,16 @@ bool holdsWholePixel(const std::vector<RasterPiece>& pieces) {
     return std::floor(b[2] + d) - std::ceil(b[0] - d) >= 1 && std::floor(b[3] + d) - std::ceil(b[1] - d) >= 1;
 }
 
+bool behindCasters(const std::vector<RasterPiece>& pieces, const CellMask& mask, const LightView& v) {
+    for (const RasterPiece& r : pieces) {
+        if (r.misc[2] != 0.0f) continue;  // a crack segment: it only ever unblocks
+        double casterNear, casterFar;
+        mask.depthRange(reachOf(r, v), casterNear, casterFar);
+        if (!(double(r.plane2[1]) > casterFar + 1e-3 * (1 + std::abs(casterFar)))) return false;
+    }
+    return true;
+}
+
 std::array<glm::dvec3, 8> boxCorners(const Aabb& b) {
     std::array<glm::dvec3, 8> c;
     for (int k = 0; k < 8; ++k) c[size_t(k)] = {k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z};

@@ -121,6 +121,15 @@ void keepTouching(std::vector<RasterPiece>& pieces, size_t from, const CellMask&
 // needed its own draw-and-resolve batch when it overlapped another.)
 bool holdsWholePixel(const std::vector<RasterPiece>& pieces);
 
+// True when every triangle piece (kind 0) of a sheet lies behind every caster over its own
+// reach: its nearest vertex depth beyond the casters' farthest there, by 1e-3 relative (as
+// the sheet-wide test in confirm_stage.cpp, far above the shader's depth margins). Then at
+// any pixel the sheet's recorded depth, the farthest of its pieces there, is behind every
+// caster fragment's nearest depth, so the sheet blocks none of them and leaving it out
+// changes no count. (A sheet as large as a dense rock's face spans too many cells for one
+// depth range, but its parts behind the examined group lie behind it piece by piece.)
+bool behindCasters(const std::vector<RasterPiece>& pieces, const CellMask& mask, const LightView& v);
+
 // The corners of a box.
 std::array<glm::dvec3, 8> boxCorners(const Aabb& b);
 

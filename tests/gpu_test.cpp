@@ -21,6 +21,7 @@
 #include <functional>
 #include <map>
 #include <set>
+#include <tuple>
 
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
@@ -827,12 +828,25 @@ void expectSameCounts(const std::vector<NamedScene>& scenes, const gpu::GpuConfi
     }
 }
 
+SpaceBuilder denseJaggedWorld(uint64_t seed);
+
+// Dense jagged worlds, seeds 1 to n.
+void addDenseWorlds(std::vector<NamedScene>& scenes, uint64_t n) {
+    for (uint64_t seed = 1; seed <= n; ++seed) scenes.push_back({"dense", [seed] { return denseJaggedWorld(seed); }});
+}
+
+// Random worlds (odd seeds) and gappy ones (even seeds), seeds first to last.
+void addRandomWorlds(std::vector<NamedScene>& scenes, uint64_t first, uint64_t last) {
+    for (uint64_t seed = first; seed <= last; ++seed)
+        scenes.push_back({seed % 2 ? "random" : "gappy", [seed] { return seed % 2 ? randomWorld(seed) : gappyWorld(seed); }});
+}
+
 TEST(GpuConfirm, PruningChangesNoCount) {
     REQUIRE_GL();
     std::vector<NamedScene> scenes = gpuKnownAnswerScenes();
     scenes.push_back({"sample", sampleSpace});
-    for (uint64_t seed = 1; seed <= 4; ++seed)
-        scenes.push_back({seed % 2 ? "random" : "gappy", [seed] { return seed % 2 ? randomWorld(seed) : gappyWorld(seed); }});
+    addRandomWorlds(scenes, 1, 4);
+    addDenseWorlds(scenes, 2);  // sheets behind the casters piece by piece (behindCasters)
     gpu::GpuConfirmOptions pruned;
     pruned.resolution = 128;
     pruned.includeTerrain = true;
@@ -882,12 +896,13 @@ SpaceBuilder denseJaggedWorld(uint64_t seed) {
     return b;
 }
 
+
 // Sheets that hold no whole pixel block nothing: leaving them out changes no count and no
 // blocked pixel, whole views drawn (on the dense scenes it leaves out many sheets).
 TEST(GpuConfirm, SliverSheetsBlockNothing) {
     REQUIRE_GL();
     std::vector<NamedScene> scenes = gpuKnownAnswerScenes();
-    for (uint64_t seed = 1; seed <= 2; ++seed) scenes.push_back({"dense", [seed] { return denseJaggedWorld(seed); }});
+    addDenseWorlds(scenes, 2);
     gpu::GpuConfirmOptions dropped;
     dropped.resolution = 256;
     dropped.collectViewStats = true;
@@ -905,6 +920,40 @@ TEST(GpuConfirm, SliverSheetsBlockNothing) {
     EXPECT_GT(compared, 20);
     EXPECT_GT(culled, 0);
     EXPECT_GT(fewer, 0) << "the dense scenes should have sliver sheets";
+}
+
+// The triangles found through the meshes' trees are all that can reach the examined
+// pixels: with the trees and with every triangle of every near object classified, every
+// examined bit has the same lit and passed counts, verdict and passed pixels (which aim the
+// dense witness search). Dense jagged scenes (sun and lamp, where most of a neighbour lies
+// away from the examined pixels), the known-answer scenes and random worlds (mirrored,
+// scaled, sunk, non-manifold meshes); terrains examined too, so that large casters are.
+TEST(GpuConfirm, TreeSelectionChangesNothing) {
+    REQUIRE_GL();
+    std::vector<NamedScene> scenes = gpuKnownAnswerScenes();
+    addDenseWorlds(scenes, 3);
+    addRandomWorlds(scenes, 5, 8);
+    gpu::GpuConfirmOptions tree;
+    tree.resolution = 256;
+    tree.includeTerrain = true;
+    gpu::GpuConfirmOptions every = tree;
+    every.treeSelection = false;
+    int compared = 0, culled = 0, fewer = 0;
+    expectSameCounts(scenes, tree, every, compared, culled, [&](const gpu::GpuConfirmStage& a, const gpu::GpuConfirmStage& c) {
+        for (size_t q = 0; q < a.passedPixels().size(); ++q) {
+            const auto &p = a.passedPixels()[q].pixels, &r = c.passedPixels()[q].pixels;
+            ASSERT_EQ(p.size(), r.size()) << "bit " << q;
+            for (size_t k = 0; k < p.size(); ++k) {
+                EXPECT_EQ(std::make_tuple(p[k].view, p[k].px, p[k].py), std::make_tuple(r[k].view, r[k].px, r[k].py));
+                EXPECT_EQ(p[k].lsPoint, r[k].lsPoint);
+            }
+        }
+        EXPECT_LE(a.trianglesClassified(), c.trianglesClassified());
+        fewer += a.trianglesClassified() < c.trianglesClassified();
+    });
+    EXPECT_GT(compared, 40);
+    EXPECT_GT(culled, 0);
+    EXPECT_GE(fewer, 2) << "the trees should leave out the triangles away from the examined pixels";
 }
 
 // The window slides: the stage keeps the edge adjacency of the meshes the window still
@@ -925,6 +974,7 @@ TEST(GpuConfirm, EdgesFollowTheWindow) {
         ASSERT_TRUE(stage.run(w, cv, st));
         ASSERT_GT(st.bitsExamined, 0u);
         EXPECT_LE(stage.meshesWithEdges(), w.meshes().size()) << "window " << c.x << "," << c.z;
+        EXPECT_LE(stage.meshesWithTrees(), w.meshes().size()) << "window " << c.x << "," << c.z;
         held = std::max(held, stage.meshesWithEdges());
     }
     EXPECT_GT(held, 0u);
