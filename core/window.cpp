@@ -109,7 +109,43 @@ bool BakeWindow::lsTerrainTrianglesOver(double x0, double z0, double x1, double 
     });
 }
 
+Aabb lsGroupBoundsByLoop(const WindowObject& o, uint32_t group, bool withArea) {
+    Aabb box;
+    const Mesh& m = *o.mesh;
+    for (size_t t = 0; t < m.triangles.size(); ++t) {
+        if (m.triangleGroup[t] != group) continue;
+        const auto& tri = m.triangles[t];
+        const glm::dvec3 &a = m.positions[tri[0]], &b = m.positions[tri[1]], &c = m.positions[tri[2]];
+        if (withArea && hasRepeatedVertex(a, b, c)) continue;
+        box.extend(o.lsTransform.apply(a));
+        box.extend(o.lsTransform.apply(b));
+        box.extend(o.lsTransform.apply(c));
+    }
+    return box;
+}
+
+Aabb lsGroupBounds(const WindowObject& o, uint32_t group, bool withArea) {
+    const MeshVertexIndex& index = vertexIndex(*o.mesh);
+    if (group >= index.group.size()) return {};
+    const VertexTree& tree = *(withArea ? index.groupWithArea : index.group)[group];
+    if (tree.empty()) return {};
+    if (auto box = placedBox(tree, o.mesh->positions, o.lsTransform)) return Aabb{box->first, box->second};
+    return lsGroupBoundsByLoop(o, group, withArea);  // a zero coordinate: its sign is the loop's
+}
+
 namespace {
+
+// The window-local box of every vertex a triangle of the object uses, by the loop over the
+// vertices in index order (the reference; the fallback of placedBox).
+Aabb lsUsedBoundsByLoop(const WindowObject& wo) {
+    Aabb box;
+    std::vector<char> used(wo.mesh->positions.size(), 0);
+    for (const auto& tri : wo.mesh->triangles)
+        for (uint32_t v : tri) used[v] = 1;
+    for (size_t v = 0; v < used.size(); ++v)
+        if (used[v]) box.extend(wo.lsTransform.apply(wo.mesh->positions[v]));
+    return box;
+}
 
 std::string objectLabel(const ChunkFile& cf, const ChunkObject& o) {
     std::string name = chunkFileName(cf.coord);
@@ -141,11 +177,27 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
                 auto [lo, hi] = std::minmax_element(o.heightfield->heights.begin(), o.heightfield->heights.end());
                 yMin = std::min(yMin, *lo);
                 yMax = std::max(yMax, *hi);
-            } else if (o.mesh) {
-                for (const glm::dvec3& p : o.mesh->positions) {
-                    double y = o.transform.apply(p).y;
-                    yMin = std::min(yMin, y);
-                    yMax = std::max(yMax, y);
+            } else if (o.mesh && !o.mesh->positions.empty()) {
+                // The extremes of y over every vertex, from the mesh's vertex tree: the loop's
+                // values exactly (core/mesh_index.h). A zero extreme: the loop, whose order
+                // decides which zero it keeps.
+                const VertexTree& all = *vertexIndex(*o.mesh).positions;
+                const std::vector<glm::dvec3>& ps = o.mesh->positions;
+                const double hi = all.maximum(
+                    [&](const glm::dvec3& a, const glm::dvec3& b) { return placedCoordinateUpper(o.transform, 1, 1.0, a, b); },
+                    [&](uint32_t v) { return o.transform.apply(ps[v]).y; });
+                const double lo = -all.maximum(
+                    [&](const glm::dvec3& a, const glm::dvec3& b) { return placedCoordinateUpper(o.transform, 1, -1.0, a, b); },
+                    [&](uint32_t v) { return -o.transform.apply(ps[v]).y; });
+                if (lo != 0.0 && hi != 0.0) {
+                    yMin = std::min(yMin, lo);
+                    yMax = std::max(yMax, hi);
+                } else {
+                    for (const glm::dvec3& p : ps) {
+                        const double y = o.transform.apply(p).y;
+                        yMin = std::min(yMin, y);
+                        yMax = std::max(yMax, y);
+                    }
                 }
             }
         }
@@ -189,13 +241,14 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
                     wo.flipsWinding = o.transform.determinant() < 0;
                     for (const PrimitiveGroup& g : wo.mesh->groups) w.hasAlphaTested |= g.alphaTested;
                 }
-                // Every vertex a triangle uses, mapped once (a dense mesh's vertices are shared
-                // by ~6 triangles): the same box as mapping each triangle's corners.
-                std::vector<char> used(wo.mesh->positions.size(), 0);
-                for (const auto& tri : wo.mesh->triangles)
-                    for (uint32_t v : tri) used[v] = 1;
-                for (size_t v = 0; v < used.size(); ++v)
-                    if (used[v]) wo.lsBounds.extend(wo.lsTransform.apply(wo.mesh->positions[v]));
+                // The box of every vertex a triangle uses (the same box as mapping each
+                // triangle's corners), from the mesh's vertex tree: a few leaves per placement,
+                // bit for bit the loop's box (core/mesh_index.h).
+                const VertexTree& used = *vertexIndex(*wo.mesh).used;
+                if (auto box = placedBox(used, wo.mesh->positions, wo.lsTransform))
+                    wo.lsBounds = Aabb{box->first, box->second};
+                else if (!used.empty())
+                    wo.lsBounds = lsUsedBoundsByLoop(wo);  // a zero coordinate: its sign is the loop's
                 if (!wo.lsBounds.empty()) {
                     w.lsBounds.extend(wo.lsBounds);
                     if (wo.centre) w.lsCentreBounds.extend(wo.lsBounds);

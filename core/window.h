@@ -82,6 +82,14 @@ struct BakeWindow {
     }
 };
 
+// The window-local box of the object's placed vertices of one group's triangles (withArea:
+// of its triangles with three distinct vertices), bit for bit the box a loop over those
+// triangles' corners with Aabb::extend gives, at the cost of a few leaves of the mesh's
+// vertex trees (core/mesh_index.h). Empty when the group has no such triangle.
+Aabb lsGroupBounds(const WindowObject& object, uint32_t group, bool withArea);
+// The same by the loop over the triangles (the reference; the fallback of the above).
+Aabb lsGroupBoundsByLoop(const WindowObject& object, uint32_t group, bool withArea);
+
 // Terrain meshes made from heightfields, kept across windows (a bake makes each once).
 using TerrainMeshes = std::unordered_map<const Heightfield*, std::shared_ptr<const Mesh>>;
 

@@ -3,6 +3,8 @@
 
 #include "raycast/receiver_targets.h"
 
+#include "core/mesh_index.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -130,30 +132,64 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
     const WindowObject& caster = w.objects[object];
     const Mesh& cm = *caster.mesh;
 
-    // The caster group's placed vertices: its footprint and nearest depth.
-    std::vector<glm::dvec3> cv;
-    Aabb cbox;
-    double longestEdge = 0.0;
-    for (size_t t = 0; t < cm.triangles.size(); ++t) {
-        if (cm.triangleGroup[t] != group) continue;
-        const auto& i = cm.triangles[t];
-        for (int k = 0; k < 3; ++k) {
-            cv.push_back(caster.lsTransform.apply(cm.positions[i[size_t(k)]]));
-            cbox.extend(cv.back());
-        }
-        const size_t n = cv.size();
-        longestEdge = std::max({longestEdge, glm::length(cv[n - 1] - cv[n - 2]), glm::length(cv[n - 2] - cv[n - 3]),
-                                glm::length(cv[n - 3] - cv[n - 1])});
-    }
-    if (cv.empty()) return out;
+    // The caster group's placed vertices: its box, footprint and nearest depth. Computed as
+    // over every triangle corner, but per unique mesh where the light allows: a directional
+    // light's footprint and depths are linear in the placed point, so the mesh's vertex tree
+    // gives their extremes exactly (core/mesh_index.h) at the cost of a few leaves. A point
+    // light's projection is not linear: its vertices are mapped once each (not once per
+    // corner), and its edges measured once each from those.
+    const Aabb cbox = lsGroupBounds(caster, group, false);
+    if (cbox.empty()) return out;
     const LightFrame frame(L, 0.5 * (cbox.min + cbox.max));
     // Margins (projection units: metres, or metres per metre of depth for point lights):
     // the footprint only steers the targets, so a small relative margin is enough.
     const double grow = frame.directional ? 1e-6 * (glm::length(cbox.max - cbox.min) + 1.0) : 1e-6;
-    const Footprint fp = footprintOf(frame, cv, grow);
+    const VertexTree& groupVertices = *vertexIndex(cm).group[group];
+    Footprint fp;
     double nearest = std::numeric_limits<double>::infinity();
-    for (const glm::dvec3& p : cv) nearest = std::min(nearest, frame.depth(p));
-    if (!frame.directional) nearest = std::max(0.0, nearest - longestEdge);  // a face may come closer than its vertices
+    if (frame.directional) {
+        // The extremes of dot(d, placed p) over the group's vertices, as the loop computes
+        // them (a zero extreme's sign is irrelevant: the footprint is grown by a nonzero
+        // margin, and the depth is only compared).
+        auto extreme = [&](const glm::dvec3& d) {
+            return groupVertices.maximum(
+                [&](const glm::dvec3& lo, const glm::dvec3& hi) { return placedDotUpper(caster.lsTransform, d, lo, hi); },
+                [&](uint32_t v) { return glm::dot(d, caster.lsTransform.apply(cm.positions[v])); });
+        };
+        // glm::dot(-u, x) is -glm::dot(u, x) exactly (every product changes sign).
+        fp.max = glm::dvec2(extreme(frame.u), extreme(frame.v));
+        fp.min = -glm::dvec2(extreme(-frame.u), extreme(-frame.v));
+        fp.min -= glm::dvec2(grow);
+        fp.max += glm::dvec2(grow);
+        nearest = -extreme(-frame.axis);
+    } else {
+        thread_local std::vector<glm::dvec3> placed;
+        placed.resize(cm.positions.size());
+        for (uint32_t v : groupVertices.order()) {
+            placed[v] = caster.lsTransform.apply(cm.positions[v]);
+            nearest = std::min(nearest, frame.depth(placed[v]));
+        }
+        // footprintOf over the group's placed vertices (each once).
+        for (uint32_t v : groupVertices.order()) {
+            const std::optional<glm::dvec2> q = frame.project(placed[v]);
+            if (!q) {
+                fp.all = true;
+                break;
+            }
+            fp.extend(*q);
+        }
+        fp.min -= glm::dvec2(grow);
+        fp.max += glm::dvec2(grow);
+        // A face may come closer than its vertices: by at most its longest edge.
+        double longestEdge = 0.0;
+        for (size_t t = 0; t < cm.triangles.size(); ++t) {
+            if (cm.triangleGroup[t] != group) continue;
+            const auto& i = cm.triangles[t];
+            longestEdge = std::max({longestEdge, glm::length(placed[i[2]] - placed[i[1]]), glm::length(placed[i[1]] - placed[i[0]]),
+                                    glm::length(placed[i[0]] - placed[i[2]])});
+        }
+        nearest = std::max(0.0, nearest - longestEdge);
+    }
     const double deeper = nearest + L.bias;  // a receiver point shallower than this cannot be q
     const double tol = w.terrainTolerance;
 
