@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <glm/common.hpp>
 
@@ -19,40 +20,69 @@ constexpr uint32_t kLeafSize = 16;
 
 }  // namespace
 
-VertexTree::VertexTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices) : order_(std::move(vertices)) {
+template <class Box>
+void MeshTree::build(const Box& box) {
     if (order_.empty()) return;
     nodes_.reserve(2 * (order_.size() / kLeafSize + 1));
-    // Median splits along the longest side: balanced, so the query's stack stays shallow.
-    struct Todo {
-        int32_t node;
-    };
-    std::vector<Todo> todo;
+    std::vector<int32_t> todo{0};
     nodes_.push_back({glm::dvec3(0.0), glm::dvec3(0.0), 0, uint32_t(order_.size()), -1, -1});
-    todo.push_back({0});
+    // Each item's box centre, for the splits (by item index: the order is permuted).
+    std::vector<glm::dvec3> centre;
+    uint32_t maxItem = 0;
+    for (uint32_t i : order_) maxItem = std::max(maxItem, i);
+    centre.resize(size_t(maxItem) + 1);
+    for (uint32_t i : order_) {
+        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+        box(i, lo, hi);
+        centre[i] = 0.5 * (lo + hi);
+    }
     while (!todo.empty()) {
-        const int32_t ni = todo.back().node;
+        const int32_t ni = todo.back();
         todo.pop_back();
         Node n = nodes_[size_t(ni)];
-        n.lo = n.hi = positions[order_[n.begin]];
+        n.lo = glm::dvec3(std::numeric_limits<double>::infinity());
+        n.hi = glm::dvec3(-std::numeric_limits<double>::infinity());
+        glm::dvec3 clo = n.lo, chi = n.hi;
         for (uint32_t k = n.begin; k < n.end; ++k) {
-            n.lo = glm::min(n.lo, positions[order_[k]]);
-            n.hi = glm::max(n.hi, positions[order_[k]]);
+            box(order_[k], n.lo, n.hi);
+            clo = glm::min(clo, centre[order_[k]]);
+            chi = glm::max(chi, centre[order_[k]]);
         }
         if (n.end - n.begin > kLeafSize) {
-            const glm::dvec3 side = n.hi - n.lo;
+            const glm::dvec3 side = chi - clo;
             const int axis = side.x >= side.y && side.x >= side.z ? 0 : side.y >= side.z ? 1 : 2;
             const uint32_t mid = n.begin + (n.end - n.begin) / 2;
             std::nth_element(order_.begin() + n.begin, order_.begin() + mid, order_.begin() + n.end,
-                             [&](uint32_t a, uint32_t b) { return positions[a][axis] < positions[b][axis]; });
+                             [&](uint32_t a, uint32_t b) { return centre[a][axis] < centre[b][axis]; });
             n.left = int32_t(nodes_.size());
             n.right = n.left + 1;
             nodes_.push_back({glm::dvec3(0.0), glm::dvec3(0.0), n.begin, mid, -1, -1});
             nodes_.push_back({glm::dvec3(0.0), glm::dvec3(0.0), mid, n.end, -1, -1});
-            todo.push_back({n.left});
-            todo.push_back({n.right});
+            todo.push_back(n.left);
+            todo.push_back(n.right);
         }
         nodes_[size_t(ni)] = n;
     }
+}
+
+MeshTree::MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices) : order_(std::move(vertices)) {
+    build([&](uint32_t v, glm::dvec3& lo, glm::dvec3& hi) {
+        lo = glm::min(lo, positions[v]);
+        hi = glm::max(hi, positions[v]);
+    });
+}
+
+MeshTree MeshTree::overTriangles(const Mesh& mesh) {
+    MeshTree tree;
+    tree.order_.resize(mesh.triangles.size());
+    for (uint32_t t = 0; t < tree.order_.size(); ++t) tree.order_[t] = t;
+    tree.build([&](uint32_t t, glm::dvec3& lo, glm::dvec3& hi) {
+        for (uint32_t v : mesh.triangles[t]) {
+            lo = glm::min(lo, mesh.positions[v]);
+            hi = glm::max(hi, mesh.positions[v]);
+        }
+    });
+    return tree;
 }
 
 namespace {
@@ -96,6 +126,7 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
         const auto& tri = m.triangles[t];
         if (!hasRepeatedVertex(m.positions[tri[0]], m.positions[tri[1]], m.positions[tri[2]])) withArea[g].push_back(t);
     }
+    index->triangles = MeshTree::overTriangles(m);
     index->used = treeOf(verticesOf(all));
     std::vector<uint32_t> every(nv);
     for (uint32_t v = 0; v < nv; ++v) every[v] = v;

@@ -31,34 +31,47 @@ namespace shadowcull {
 struct Mesh;
 struct RowTransform;
 
-// A box tree over a subset of a mesh's vertices, in mesh coordinates (metres). Leaves hold
-// up to 16 vertices; a node's box is the exact box of its vertices (no rounding: min/max).
-class VertexTree {
+// A box tree over items of a mesh (a subset of its vertices, or its triangles), in mesh
+// coordinates (metres). Leaves hold up to 16 items; a node's box is the exact box of its
+// items' vertices (no rounding: min/max).
+class MeshTree {
 public:
     struct Node {
         glm::dvec3 lo{0.0}, hi{0.0};
         uint32_t begin = 0, end = 0;  // range in order()
         int32_t left = -1, right = -1;  // children (both or neither)
     };
-    VertexTree() = default;
-    VertexTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices);
+    MeshTree() = default;
+    // A tree over vertices (indices into `positions`).
+    MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices);
+    // A tree over every triangle of the mesh (items: triangle indices).
+    static MeshTree overTriangles(const Mesh& mesh);
     bool empty() const { return order_.empty(); }
     size_t size() const { return order_.size(); }
     const std::vector<Node>& nodes() const { return nodes_; }
-    const std::vector<uint32_t>& order() const { return order_; }  // vertex indices, by leaf
+    const std::vector<uint32_t>& order() const { return order_; }  // items, by leaf
 
-    // The largest eval(v) over the tree's vertices v (-infinity when empty), where
-    // upper(lo, hi) bounds eval over every vertex in the box [lo, hi] from above
+    // The largest eval(item) over the tree's items (-infinity when empty), where
+    // upper(lo, hi) bounds eval over every item in the box [lo, hi] from above
     // (conservatively, rounding included). Nodes are visited best bound first and skipped
     // when their bound is below the best value found: the result is the maximum of eval,
     // exactly, whatever the bound's slack.
     template <class Upper, class Eval>
     double maximum(const Upper& upper, const Eval& eval) const;
+    // Calls visit(item) for every item of every leaf whose box and every ancestor's box
+    // `may(lo, hi)` accepts (a conservative filter: false only where no item can matter).
+    template <class May, class Visit>
+    void forEach(const May& may, const Visit& visit) const;
 
 private:
+    // Median splits along the longest side of the items' centres: balanced, so that the
+    // queries' stacks stay shallow. box(item, lo, hi) extends lo, hi by the item.
+    template <class Box>
+    void build(const Box& box);
     std::vector<Node> nodes_;
     std::vector<uint32_t> order_;
 };
+using VertexTree = MeshTree;
 
 // The trees of one mesh, and what the stages count per group.
 struct MeshVertexIndex {
@@ -68,6 +81,7 @@ struct MeshVertexIndex {
     // vertices (hasRepeatedVertex). Subsets equal to another share its tree.
     std::vector<const VertexTree*> group, groupWithArea;
     std::vector<uint64_t> groupTriangles;   // per group: its triangles
+    MeshTree triangles;                     // every triangle
     std::deque<VertexTree> trees;           // the storage behind the pointers
 };
 
@@ -110,7 +124,7 @@ double placedCoordinateUpper(const RowTransform& t, int axis, double s, const gl
 double placedDotUpper(const RowTransform& t, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi);
 
 template <class Upper, class Eval>
-double VertexTree::maximum(const Upper& upper, const Eval& eval) const {
+double MeshTree::maximum(const Upper& upper, const Eval& eval) const {
     double best = -std::numeric_limits<double>::infinity();
     if (nodes_.empty()) return best;
     struct Entry {
@@ -139,6 +153,24 @@ double VertexTree::maximum(const Upper& upper, const Eval& eval) const {
         if (eb.bound >= best) stack[top++] = eb;
     }
     return best;
+}
+
+template <class May, class Visit>
+void MeshTree::forEach(const May& may, const Visit& visit) const {
+    if (nodes_.empty()) return;
+    int32_t stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& n = nodes_[size_t(stack[--top])];
+        if (!may(n.lo, n.hi)) continue;
+        if (n.left < 0) {
+            for (uint32_t k = n.begin; k < n.end; ++k) visit(order_[k]);
+            continue;
+        }
+        stack[top++] = n.right;
+        stack[top++] = n.left;
+    }
 }
 
 }  // namespace shadowcull

@@ -280,14 +280,34 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
         if (!grazing || !low) continue;
         // Each vertex above or under the level 3/4 of the tolerance under the ground: by the
         // ground's range under the box where that settles it (most of a rock's vertices),
-        // else by the ground under the vertex, looked up once (NaN: not yet).
+        // else by the ground under the vertex, looked up once. Only the triangles that
+        // cross the level hold the band: a triangle with every vertex above the highest
+        // ground, or every vertex under the lowest ground less the level, does not. So the
+        // triangles are taken from the mesh's triangle tree where their placed heights can
+        // meet [low - level, highest] (conservative node bounds, core/mesh_index.h), and
+        // handled in triangle order as a loop over every triangle would: the same segments,
+        // in the same order, at the cost of the triangles near the ground.
         double highest = *low;
         for (const auto& g : ground) highest = std::max({highest, g[0].y, g[1].y, g[2].y});
         const double level = 0.75 * tol;
-        placedVertices.resize(m.positions.size());
-        aboveLevel.assign(m.positions.size(), std::numeric_limits<double>::quiet_NaN());
-        std::vector<signed char>& side = vertexSide;
-        side.assign(m.positions.size(), 0);
+        const double bottom = *low - level;
+        thread_local std::vector<uint32_t> crossing;
+        crossing.clear();
+        vertexIndex(m).triangles.forEach(
+            [&](const glm::dvec3& lo, const glm::dvec3& hi) {
+                return placedCoordinateUpper(o.lsTransform, 1, 1.0, lo, hi) >= bottom &&
+                       -placedCoordinateUpper(o.lsTransform, 1, -1.0, lo, hi) <= highest;
+            },
+            [&](uint32_t t) { crossing.push_back(t); });
+        std::sort(crossing.begin(), crossing.end());
+        // Per vertex, computed on first use (stamp == pass): placed, side, height over the level.
+        thread_local std::vector<uint32_t> stamp;
+        thread_local uint32_t pass = 0;
+        if (stamp.size() < m.positions.size()) stamp.resize(m.positions.size(), 0);
+        if (++pass == 0) std::fill(stamp.begin(), stamp.end(), 0), pass = 1;
+        placedVertices.resize(std::max(placedVertices.size(), m.positions.size()));
+        aboveLevel.resize(std::max(aboveLevel.size(), m.positions.size()));
+        vertexSide.resize(std::max(vertexSide.size(), m.positions.size()));
         auto lookUp = [&](size_t v) {
             if (std::isnan(aboveLevel[v])) {
                 const std::optional<double> g = w.lsTerrainHeight(placedVertices[v].x, placedVertices[v].z);
@@ -295,18 +315,20 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
             }
             return aboveLevel[v];
         };
-        bool up = false, down = false;
-        for (size_t v = 0; v < m.positions.size(); ++v) {
+        auto place = [&](uint32_t v) {
+            if (stamp[v] == pass) return;
+            stamp[v] = pass;
             placedVertices[v] = o.lsTransform.apply(m.positions[v]);
+            aboveLevel[v] = std::numeric_limits<double>::quiet_NaN();
             const double y = placedVertices[v].y;
-            side[v] = y > highest ? 1 : y < *low - level ? -1 : lookUp(v) >= 0 ? 1 : -1;
-            (side[v] > 0 ? up : down) = true;
-        }
-        if (!up || !down) continue;
+            vertexSide[v] = y > highest ? 1 : y < bottom ? -1 : lookUp(v) >= 0 ? 1 : -1;
+        };
+        const std::vector<signed char>& side = vertexSide;
         const size_t firstBand = bandWeights.size();
         double length = 0.0;
-        for (size_t t = 0; t < m.triangles.size(); ++t) {
+        for (uint32_t t : crossing) {
             const auto& i = m.triangles[t];
+            for (uint32_t v : i) place(v);
             if (side[i[0]] == side[i[1]] && side[i[1]] == side[i[2]]) continue;
             std::array<glm::dvec3, 3> tri = {placedVertices[i[0]], placedVertices[i[1]], placedVertices[i[2]]};
             const std::array<double, 3> f = {lookUp(i[0]), lookUp(i[1]), lookUp(i[2])};
