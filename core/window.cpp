@@ -24,15 +24,17 @@ namespace {
 // u = v (Heightfield::toMesh): (i,j)-(i,j+1)-(i+1,j+1) where v >= u, (i,j)-(i+1,j+1)-(i+1,j)
 // where u >= v; over each half a plane is lowest at a corner of that half's polygon: the
 // rectangle's corners in it and where the diagonal crosses the rectangle's sides.
-double cellSurfaceMin(const Heightfield& hf, int i, int j, double u0, double v0, double u1, double v1) {
+// With `highest`: the highest point instead (a plane is highest at a corner of the polygon too).
+double cellSurfaceMin(const Heightfield& hf, int i, int j, double u0, double v0, double u1, double v1, bool highest = false) {
     const double h00 = hf.at(i, j), h10 = hf.at(i + 1, j), h01 = hf.at(i, j + 1), h11 = hf.at(i + 1, j + 1);
     auto height = [&](double u, double v) {
         return v >= u ? h00 + u * (h11 - h01) + v * (h01 - h00) : h00 + u * (h10 - h00) + v * (h11 - h10);
     };
-    double lowest = std::min({height(u0, v0), height(u1, v0), height(u0, v1), height(u1, v1)});
+    const auto pick = [&](std::initializer_list<double> h) { return highest ? std::max(h) : std::min(h); };
+    double lowest = pick({height(u0, v0), height(u1, v0), height(u0, v1), height(u1, v1)});
     // The diagonal u = v meets the rectangle where [u0,u1] and [v0,v1] overlap.
     const double lo = std::max(u0, v0), hi = std::min(u1, v1);
-    if (lo <= hi) lowest = std::min({lowest, height(lo, lo), height(hi, hi)});
+    if (lo <= hi) lowest = pick({lowest, height(lo, lo), height(hi, hi)});
     return lowest;
 }
 
@@ -60,11 +62,10 @@ bool forTerrainsOver(const BakeWindow& w, double x0, double z0, double x1, doubl
     return true;
 }
 
-}  // namespace
-
-std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double x1, double z1) const {
+// lsTerrainMinOver, or with `highest` lsTerrainMaxOver.
+std::optional<double> terrainExtremeOver(const BakeWindow& w, double x0, double z0, double x1, double z1, bool highest) {
     std::optional<double> lowest;
-    const bool covered = forTerrainsOver(*this, x0, z0, x1, z1, 64, [&](const WindowObject& o) {
+    const bool covered = forTerrainsOver(w, x0, z0, x1, z1, 64, [&](const WindowObject& o) {
         const Heightfield& hf = *o.heightfield;
         const int cells = hf.n - 1;
         const double cell = hf.size / double(cells);
@@ -79,11 +80,21 @@ std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double 
             for (int i = i0; i <= i1; ++i) {
                 const double u0 = std::clamp(f0 - i, 0.0, 1.0), u1 = std::clamp(f1 - i, 0.0, 1.0);
                 const double v0 = std::clamp(g0 - j, 0.0, 1.0), v1 = std::clamp(g1 - j, 0.0, 1.0);
-                const double h = cellSurfaceMin(hf, i, j, u0, v0, u1, v1) + o.lsTerrainOrigin.y;
-                if (!lowest || h < *lowest) lowest = h;
+                const double h = cellSurfaceMin(hf, i, j, u0, v0, u1, v1, highest) + o.lsTerrainOrigin.y;
+                if (!lowest || (highest ? h > *lowest : h < *lowest)) lowest = h;
             }
     });
     return covered ? lowest : std::nullopt;
+}
+
+}  // namespace
+
+std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double x1, double z1) const {
+    return terrainExtremeOver(*this, x0, z0, x1, z1, false);
+}
+
+std::optional<double> BakeWindow::lsTerrainMaxOver(double x0, double z0, double x1, double z1) const {
+    return terrainExtremeOver(*this, x0, z0, x1, z1, true);
 }
 
 bool BakeWindow::lsTerrainTrianglesOver(double x0, double z0, double x1, double z1,

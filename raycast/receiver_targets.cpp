@@ -295,8 +295,27 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
         crossing.clear();
         vertexIndex(m).triangles.forEach(
             [&](const glm::dvec3& lo, const glm::dvec3& hi) {
-                return placedCoordinateUpper(o.lsTransform, 1, 1.0, lo, hi) >= bottom &&
-                       -placedCoordinateUpper(o.lsTransform, 1, -1.0, lo, hi) <= highest;
+                // The node's placed box (conservative: core/mesh_index.h).
+                glm::dvec3 pLo, pHi;
+                for (int a = 0; a < 3; ++a) {
+                    pHi[a] = placedCoordinateUpper(o.lsTransform, a, 1.0, lo, hi);
+                    pLo[a] = -placedCoordinateUpper(o.lsTransform, a, -1.0, lo, hi);
+                }
+                if (pHi.y < bottom || pLo.y > highest) return false;  // every vertex on one side
+                if (pHi.y - pLo.y > 0.25 * (highest - bottom)) return true;  // large: its children will tell
+                // The ground under the node alone: its vertices are all above it (no
+                // terrain counts as above), or all under it less the level. Margins: the
+                // ground's values and a vertex's height over it are rounded (~1e-15).
+                // The rectangle grown by a micrometre per 64 m chunk: a vertex on a chunk's
+                // edge is under both chunks' terrains (lsTerrainHeight takes the lower).
+                const double margin = 1e-9 * (1.0 + std::abs(pLo.y) + std::abs(pHi.y));
+                const double grown = 1e-8 * w.chunkSize;
+                pLo -= glm::dvec3(grown);
+                pHi += glm::dvec3(grown);
+                const std::optional<double> under = w.lsTerrainMinOver(pLo.x, pLo.z, pHi.x, pHi.z);
+                if (under && pHi.y < *under - level - margin) return false;
+                const std::optional<double> over = w.lsTerrainMaxOver(pLo.x, pLo.z, pHi.x, pHi.z);
+                return !(over && pLo.y > *over + margin);
             },
             [&](uint32_t t) { crossing.push_back(t); });
         std::sort(crossing.begin(), crossing.end());

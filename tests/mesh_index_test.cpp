@@ -171,5 +171,47 @@ TEST(MeshIndex, ACopyOfAMeshBuildsItsOwnIndex) {
     expectSameBox(lsGroupBounds(o, 0, false), lsGroupBoundsByLoop(o, 0, false), "copy");
 }
 
+
+// The terrain's extremes over a rectangle (the receiver-side band's filter relies on them):
+// every height under the rectangle lies between them, on two chunks with unmatched edges.
+TEST(MeshIndex, TerrainExtremesBoundEveryHeightUnderARectangle) {
+    std::mt19937 rng(19);
+    std::uniform_real_distribution<double> height(-3.0, 9.0), unit(0.0, 1.0);
+    Heightfield a, b;
+    for (Heightfield* hf : {&a, &b}) {
+        hf->n = 17;
+        hf->size = 64.0;
+        for (int k = 0; k < 17 * 17; ++k) hf->heights.push_back(height(rng));
+    }
+    BakeWindow w;
+    w.chunkSize = 64.0;
+    for (int c = 0; c < 2; ++c) {
+        WindowObject o;
+        o.kind = ChunkObject::Kind::Terrain;
+        o.heightfield = c ? &b : &a;
+        o.lsTerrainOrigin = glm::dvec3(64.0 * c, -2.0, 0.0);
+        w.terrainObjects.push_back(w.objects.size());
+        w.objects.push_back(o);
+    }
+    for (int rep = 0; rep < 300; ++rep) {
+        const double x0 = 120.0 * unit(rng), z0 = 60.0 * unit(rng);
+        const double x1 = std::min(127.9, x0 + 10.0 * unit(rng)), z1 = std::min(63.9, z0 + 10.0 * unit(rng));
+        const std::optional<double> lo = w.lsTerrainMinOver(x0, z0, x1, z1), hi = w.lsTerrainMaxOver(x0, z0, x1, z1);
+        ASSERT_TRUE(lo && hi);
+        double seenLo = 1e300, seenHi = -1e300;
+        for (int k = 0; k < 200; ++k) {
+            const double x = x0 + (x1 - x0) * unit(rng), z = z0 + (z1 - z0) * unit(rng);
+            const double h = *w.lsTerrainHeight(x, z);
+            EXPECT_LE(h, *hi + 1e-12);
+            EXPECT_GE(h, *lo - 1e-12);
+            seenLo = std::min(seenLo, h);
+            seenHi = std::max(seenHi, h);
+        }
+        EXPECT_LE(*hi, seenHi + 12.0);  // a bound, not a guess: near what the samples saw
+    }
+    // Part of the rectangle without terrain: nothing.
+    EXPECT_FALSE(w.lsTerrainMaxOver(100.0, 10.0, 130.0, 20.0));
+}
+
 }  // namespace
 }  // namespace shadowcull
