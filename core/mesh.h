@@ -9,6 +9,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "core/mesh_index.h"
 #include "core/status.h"
 
 namespace shadowcull {
@@ -36,6 +37,9 @@ struct Mesh {
     std::vector<uint32_t> triangleGroup;             // per triangle: index into groups
     std::vector<PrimitiveGroup> groups;              // every group, also those without triangles
     std::vector<std::string> sourceFiles;            // every file read to build it (.model, mesh, MTL, buffers)
+    // Vertex trees for placed boxes, built on first use (vertexIndex, core/mesh_index.h);
+    // a copy starts without them.
+    LazyMeshIndex index;
 };
 
 // Loads a Wavefront OBJ file (+ the MTL libraries it names, relative to the OBJ file).

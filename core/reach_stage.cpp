@@ -36,16 +36,13 @@ ChunkVerdicts makeChunkVerdicts(const Space& space, const BakeWindow& window) {
             ov.decisions.resize(size_t(ov.groupCount) * size_t(cv.lightCount));
             const WindowObject& wo = window.objects[size_t(ov.windowObject)];
             ov.wsGroupBounds.assign(size_t(ov.groupCount), {glm::dvec3(1e300), glm::dvec3(-1e300)});
-            ov.groupTriangles.assign(size_t(ov.groupCount), 0);
-            for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
-                const size_t g = wo.mesh->triangleGroup[t];
-                if (g >= ov.wsGroupBounds.size()) continue;
-                ++ov.groupTriangles[g];
-                for (uint32_t v : wo.mesh->triangles[t]) {
-                    const glm::dvec3 p = wo.lsTransform.apply(wo.mesh->positions[v]) + window.wsOrigin;
-                    ov.wsGroupBounds[g][0] = glm::min(ov.wsGroupBounds[g][0], p);
-                    ov.wsGroupBounds[g][1] = glm::max(ov.wsGroupBounds[g][1], p);
-                }
+            // Per unique mesh, not per triangle (core/mesh_index.h).
+            ov.groupTriangles = vertexIndex(*wo.mesh).groupTriangles;
+            for (int g = 0; g < ov.groupCount; ++g) {
+                // The window-local box moved to the world: bit for bit the box of each vertex
+                // moved (adding a constant rounds monotonically, so it keeps the extremes).
+                const Aabb ls = lsGroupBounds(wo, uint32_t(g), false);
+                if (!ls.empty()) ov.wsGroupBounds[size_t(g)] = {ls.min + window.wsOrigin, ls.max + window.wsOrigin};
             }
         }
         cv.objects.push_back(std::move(ov));
@@ -73,17 +70,10 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
         ObjectVerdicts& ov = cv.objects[oi];
         if (ov.windowObject < 0) continue;
         const WindowObject& wo = window.objects[size_t(ov.windowObject)];
-        // Window-local bounds of each group's triangles that have extent.
+        // Window-local bounds of each group's triangles that have extent (from the mesh's
+        // vertex trees: a few leaves, not every triangle).
         std::vector<Aabb> groupBounds(size_t(ov.groupCount));
-        for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
-            const auto& tri = wo.mesh->triangles[t];
-            const glm::dvec3 a = wo.mesh->positions[tri[0]], b = wo.mesh->positions[tri[1]], c = wo.mesh->positions[tri[2]];
-            if (hasRepeatedVertex(a, b, c)) continue;
-            Aabb& gb = groupBounds[wo.mesh->triangleGroup[t]];
-            gb.extend(wo.lsTransform.apply(a));
-            gb.extend(wo.lsTransform.apply(b));
-            gb.extend(wo.lsTransform.apply(c));
-        }
+        for (int g = 0; g < ov.groupCount; ++g) groupBounds[size_t(g)] = lsGroupBounds(wo, uint32_t(g), true);
         const bool castsShadow = wo.source->castsShadow;
         for (int g = 0; g < ov.groupCount; ++g) {
             for (int l = 0; l < cv.lightCount; ++l) {

@@ -24,15 +24,17 @@ namespace {
 // u = v (Heightfield::toMesh): (i,j)-(i,j+1)-(i+1,j+1) where v >= u, (i,j)-(i+1,j+1)-(i+1,j)
 // where u >= v; over each half a plane is lowest at a corner of that half's polygon: the
 // rectangle's corners in it and where the diagonal crosses the rectangle's sides.
-double cellSurfaceMin(const Heightfield& hf, int i, int j, double u0, double v0, double u1, double v1) {
+// With `highest`: the highest point instead (a plane is highest at a corner of the polygon too).
+double cellSurfaceMin(const Heightfield& hf, int i, int j, double u0, double v0, double u1, double v1, bool highest = false) {
     const double h00 = hf.at(i, j), h10 = hf.at(i + 1, j), h01 = hf.at(i, j + 1), h11 = hf.at(i + 1, j + 1);
     auto height = [&](double u, double v) {
         return v >= u ? h00 + u * (h11 - h01) + v * (h01 - h00) : h00 + u * (h10 - h00) + v * (h11 - h10);
     };
-    double lowest = std::min({height(u0, v0), height(u1, v0), height(u0, v1), height(u1, v1)});
+    const auto pick = [&](std::initializer_list<double> h) { return highest ? std::max(h) : std::min(h); };
+    double lowest = pick({height(u0, v0), height(u1, v0), height(u0, v1), height(u1, v1)});
     // The diagonal u = v meets the rectangle where [u0,u1] and [v0,v1] overlap.
     const double lo = std::max(u0, v0), hi = std::min(u1, v1);
-    if (lo <= hi) lowest = std::min({lowest, height(lo, lo), height(hi, hi)});
+    if (lo <= hi) lowest = pick({lowest, height(lo, lo), height(hi, hi)});
     return lowest;
 }
 
@@ -68,11 +70,10 @@ bool forTerrainsOver(const BakeWindow& w, double x0, double z0, double x1, doubl
     return forTerrainsOver(w, x0, z0, x1, z1, maxSquares, visit, [](const GroundOpening&) { return false; });
 }
 
-}  // namespace
-
-std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double x1, double z1) const {
+// lsTerrainMinOver, or with `highest` lsTerrainMaxOver.
+std::optional<double> terrainExtremeOver(const BakeWindow& w, double x0, double z0, double x1, double z1, bool highest) {
     std::optional<double> lowest;
-    const bool covered = forTerrainsOver(*this, x0, z0, x1, z1, 64, [&](const WindowObject& o) {
+    const bool covered = forTerrainsOver(w, x0, z0, x1, z1, 64, [&](const WindowObject& o) {
         const Heightfield& hf = *o.heightfield;
         const int cells = hf.n - 1;
         const double cell = hf.size / double(cells);
@@ -87,11 +88,21 @@ std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double 
             for (int i = i0; i <= i1; ++i) {
                 const double u0 = std::clamp(f0 - i, 0.0, 1.0), u1 = std::clamp(f1 - i, 0.0, 1.0);
                 const double v0 = std::clamp(g0 - j, 0.0, 1.0), v1 = std::clamp(g1 - j, 0.0, 1.0);
-                const double h = cellSurfaceMin(hf, i, j, u0, v0, u1, v1) + o.lsTerrainOrigin.y;
-                if (!lowest || h < *lowest) lowest = h;
+                const double h = cellSurfaceMin(hf, i, j, u0, v0, u1, v1, highest) + o.lsTerrainOrigin.y;
+                if (!lowest || (highest ? h > *lowest : h < *lowest)) lowest = h;
             }
     });
     return covered ? lowest : std::nullopt;
+}
+
+}  // namespace
+
+std::optional<double> BakeWindow::lsTerrainMinOver(double x0, double z0, double x1, double z1) const {
+    return terrainExtremeOver(*this, x0, z0, x1, z1, false);
+}
+
+std::optional<double> BakeWindow::lsTerrainMaxOver(double x0, double z0, double x1, double z1) const {
+    return terrainExtremeOver(*this, x0, z0, x1, z1, true);
 }
 
 bool BakeWindow::lsGroundOver(double x0, double z0, double x1, double z1, std::vector<std::array<glm::dvec3, 3>>& out,
@@ -129,7 +140,43 @@ bool BakeWindow::lsTerrainTrianglesOver(double x0, double z0, double x1, double 
     return lsGroundOver(x0, z0, x1, z1, out, nullptr);
 }
 
+Aabb lsGroupBoundsByLoop(const WindowObject& o, uint32_t group, bool withArea) {
+    Aabb box;
+    const Mesh& m = *o.mesh;
+    for (size_t t = 0; t < m.triangles.size(); ++t) {
+        if (m.triangleGroup[t] != group) continue;
+        const auto& tri = m.triangles[t];
+        const glm::dvec3 &a = m.positions[tri[0]], &b = m.positions[tri[1]], &c = m.positions[tri[2]];
+        if (withArea && hasRepeatedVertex(a, b, c)) continue;
+        box.extend(o.lsTransform.apply(a));
+        box.extend(o.lsTransform.apply(b));
+        box.extend(o.lsTransform.apply(c));
+    }
+    return box;
+}
+
+Aabb lsGroupBounds(const WindowObject& o, uint32_t group, bool withArea) {
+    const MeshVertexIndex& index = vertexIndex(*o.mesh);
+    if (group >= index.group.size()) return {};
+    const VertexTree& tree = *(withArea ? index.groupWithArea : index.group)[group];
+    if (tree.empty()) return {};
+    if (auto box = placedBox(tree, o.mesh->positions, o.lsTransform)) return Aabb{box->first, box->second};
+    return lsGroupBoundsByLoop(o, group, withArea);  // a zero coordinate: its sign is the loop's
+}
+
 namespace {
+
+// The window-local box of every vertex a triangle of the object uses, by the loop over the
+// vertices in index order (the reference; the fallback of placedBox).
+Aabb lsUsedBoundsByLoop(const WindowObject& wo) {
+    Aabb box;
+    std::vector<char> used(wo.mesh->positions.size(), 0);
+    for (const auto& tri : wo.mesh->triangles)
+        for (uint32_t v : tri) used[v] = 1;
+    for (size_t v = 0; v < used.size(); ++v)
+        if (used[v]) box.extend(wo.lsTransform.apply(wo.mesh->positions[v]));
+    return box;
+}
 
 std::string objectLabel(const ChunkFile& cf, const ChunkObject& o) {
     std::string name = chunkFileName(cf.coord);
@@ -161,11 +208,27 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
                 auto [lo, hi] = std::minmax_element(o.heightfield->heights.begin(), o.heightfield->heights.end());
                 yMin = std::min(yMin, *lo);
                 yMax = std::max(yMax, *hi);
-            } else if (o.mesh) {
-                for (const glm::dvec3& p : o.mesh->positions) {
-                    double y = o.transform.apply(p).y;
-                    yMin = std::min(yMin, y);
-                    yMax = std::max(yMax, y);
+            } else if (o.mesh && !o.mesh->positions.empty()) {
+                // The extremes of y over every vertex, from the mesh's vertex tree: the loop's
+                // values exactly (core/mesh_index.h). A zero extreme: the loop, whose order
+                // decides which zero it keeps.
+                const VertexTree& all = *vertexIndex(*o.mesh).positions;
+                const std::vector<glm::dvec3>& ps = o.mesh->positions;
+                const double hi = all.maximum(
+                    [&](const glm::dvec3& a, const glm::dvec3& b) { return placedCoordinateUpper(o.transform, 1, 1.0, a, b); },
+                    [&](uint32_t v) { return o.transform.apply(ps[v]).y; });
+                const double lo = -all.maximum(
+                    [&](const glm::dvec3& a, const glm::dvec3& b) { return placedCoordinateUpper(o.transform, 1, -1.0, a, b); },
+                    [&](uint32_t v) { return -o.transform.apply(ps[v]).y; });
+                if (lo != 0.0 && hi != 0.0) {
+                    yMin = std::min(yMin, lo);
+                    yMax = std::max(yMax, hi);
+                } else {
+                    for (const glm::dvec3& p : ps) {
+                        const double y = o.transform.apply(p).y;
+                        yMin = std::min(yMin, y);
+                        yMax = std::max(yMax, y);
+                    }
                 }
             }
         }
@@ -209,13 +272,14 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
                     wo.flipsWinding = o.transform.determinant() < 0;
                     for (const PrimitiveGroup& g : wo.mesh->groups) w.hasAlphaTested |= g.alphaTested;
                 }
-                // Every vertex a triangle uses, mapped once (a dense mesh's vertices are shared
-                // by ~6 triangles): the same box as mapping each triangle's corners.
-                std::vector<char> used(wo.mesh->positions.size(), 0);
-                for (const auto& tri : wo.mesh->triangles)
-                    for (uint32_t v : tri) used[v] = 1;
-                for (size_t v = 0; v < used.size(); ++v)
-                    if (used[v]) wo.lsBounds.extend(wo.lsTransform.apply(wo.mesh->positions[v]));
+                // The box of every vertex a triangle uses (the same box as mapping each
+                // triangle's corners), from the mesh's vertex tree: a few leaves per placement,
+                // bit for bit the loop's box (core/mesh_index.h).
+                const VertexTree& used = *vertexIndex(*wo.mesh).used;
+                if (auto box = placedBox(used, wo.mesh->positions, wo.lsTransform))
+                    wo.lsBounds = Aabb{box->first, box->second};
+                else if (!used.empty())
+                    wo.lsBounds = lsUsedBoundsByLoop(wo);  // a zero coordinate: its sign is the loop's
                 if (!wo.lsBounds.empty()) {
                     w.lsBounds.extend(wo.lsBounds);
                     if (wo.centre) w.lsCentreBounds.extend(wo.lsBounds);

@@ -73,6 +73,10 @@ struct BakeWindow {
     // caller deciding "is this under the terrain" subtracts a margin above that. (It was the
     // lowest sample of every cell touched: on a slope, a cell's relief too low.)
     std::optional<double> lsTerrainMinOver(double x0, double z0, double x1, double z1) const;
+    // The highest point of the terrain surfaces (of every terrain there, not only the lowest
+    // at each point) over the rectangle, or nothing when part of it has no terrain; within
+    // rounding of the true maximum, as above.
+    std::optional<double> lsTerrainMaxOver(double x0, double z0, double x1, double z1) const;
     // Appends to `out` the window-local terrain triangles (as the terrains' meshes place
     // them, so the very triangles the stages test as receivers) of every cell that meets
     // the rectangle [x0,x1] x [z0,z1], one cell more on each side against rounding, of
@@ -93,6 +97,14 @@ struct BakeWindow {
         return m;
     }
 };
+
+// The window-local box of the object's placed vertices of one group's triangles (withArea:
+// of its triangles with three distinct vertices), bit for bit the box a loop over those
+// triangles' corners with Aabb::extend gives, at the cost of a few leaves of the mesh's
+// vertex trees (core/mesh_index.h). Empty when the group has no such triangle.
+Aabb lsGroupBounds(const WindowObject& object, uint32_t group, bool withArea);
+// The same by the loop over the triangles (the reference; the fallback of the above).
+Aabb lsGroupBoundsByLoop(const WindowObject& object, uint32_t group, bool withArea);
 
 // Terrain meshes made from heightfields, kept across windows (a bake makes each once).
 using TerrainMeshes = std::unordered_map<const Heightfield*, std::shared_ptr<const Mesh>>;

@@ -27,6 +27,8 @@ struct Tri {
 std::vector<glm::dvec3> sampleMeshGroup(const Mesh& mesh, uint32_t group, int areaSamples, int maxFeatureSamples) {
     std::vector<Tri> tris;
     std::vector<double> cumulative;  // cumulative area
+    tris.reserve(mesh.triangles.size());
+    cumulative.reserve(mesh.triangles.size());
     double total = 0.0;
     for (size_t t = 0; t < mesh.triangles.size(); ++t) {
         if (mesh.triangleGroup[t] != group) continue;

@@ -3,6 +3,8 @@
 
 #include "raycast/receiver_targets.h"
 
+#include "core/mesh_index.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -130,30 +132,64 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
     const WindowObject& caster = w.objects[object];
     const Mesh& cm = *caster.mesh;
 
-    // The caster group's placed vertices: its footprint and nearest depth.
-    std::vector<glm::dvec3> cv;
-    Aabb cbox;
-    double longestEdge = 0.0;
-    for (size_t t = 0; t < cm.triangles.size(); ++t) {
-        if (cm.triangleGroup[t] != group) continue;
-        const auto& i = cm.triangles[t];
-        for (int k = 0; k < 3; ++k) {
-            cv.push_back(caster.lsTransform.apply(cm.positions[i[size_t(k)]]));
-            cbox.extend(cv.back());
-        }
-        const size_t n = cv.size();
-        longestEdge = std::max({longestEdge, glm::length(cv[n - 1] - cv[n - 2]), glm::length(cv[n - 2] - cv[n - 3]),
-                                glm::length(cv[n - 3] - cv[n - 1])});
-    }
-    if (cv.empty()) return out;
+    // The caster group's placed vertices: its box, footprint and nearest depth. Computed as
+    // over every triangle corner, but per unique mesh where the light allows: a directional
+    // light's footprint and depths are linear in the placed point, so the mesh's vertex tree
+    // gives their extremes exactly (core/mesh_index.h) at the cost of a few leaves. A point
+    // light's projection is not linear: its vertices are mapped once each (not once per
+    // corner), and its edges measured once each from those.
+    const Aabb cbox = lsGroupBounds(caster, group, false);
+    if (cbox.empty()) return out;
     const LightFrame frame(L, 0.5 * (cbox.min + cbox.max));
     // Margins (projection units: metres, or metres per metre of depth for point lights):
     // the footprint only steers the targets, so a small relative margin is enough.
     const double grow = frame.directional ? 1e-6 * (glm::length(cbox.max - cbox.min) + 1.0) : 1e-6;
-    const Footprint fp = footprintOf(frame, cv, grow);
+    const VertexTree& groupVertices = *vertexIndex(cm).group[group];
+    Footprint fp;
     double nearest = std::numeric_limits<double>::infinity();
-    for (const glm::dvec3& p : cv) nearest = std::min(nearest, frame.depth(p));
-    if (!frame.directional) nearest = std::max(0.0, nearest - longestEdge);  // a face may come closer than its vertices
+    if (frame.directional) {
+        // The extremes of dot(d, placed p) over the group's vertices, as the loop computes
+        // them (a zero extreme's sign is irrelevant: the footprint is grown by a nonzero
+        // margin, and the depth is only compared).
+        auto extreme = [&](const glm::dvec3& d) {
+            return groupVertices.maximum(
+                [&](const glm::dvec3& lo, const glm::dvec3& hi) { return placedDotUpper(caster.lsTransform, d, lo, hi); },
+                [&](uint32_t v) { return glm::dot(d, caster.lsTransform.apply(cm.positions[v])); });
+        };
+        // glm::dot(-u, x) is -glm::dot(u, x) exactly (every product changes sign).
+        fp.max = glm::dvec2(extreme(frame.u), extreme(frame.v));
+        fp.min = -glm::dvec2(extreme(-frame.u), extreme(-frame.v));
+        fp.min -= glm::dvec2(grow);
+        fp.max += glm::dvec2(grow);
+        nearest = -extreme(-frame.axis);
+    } else {
+        thread_local std::vector<glm::dvec3> placed;
+        placed.resize(cm.positions.size());
+        for (uint32_t v : groupVertices.order()) {
+            placed[v] = caster.lsTransform.apply(cm.positions[v]);
+            nearest = std::min(nearest, frame.depth(placed[v]));
+        }
+        // footprintOf over the group's placed vertices (each once).
+        for (uint32_t v : groupVertices.order()) {
+            const std::optional<glm::dvec2> q = frame.project(placed[v]);
+            if (!q) {
+                fp.all = true;
+                break;
+            }
+            fp.extend(*q);
+        }
+        fp.min -= glm::dvec2(grow);
+        fp.max += glm::dvec2(grow);
+        // A face may come closer than its vertices: by at most its longest edge.
+        double longestEdge = 0.0;
+        for (size_t t = 0; t < cm.triangles.size(); ++t) {
+            if (cm.triangleGroup[t] != group) continue;
+            const auto& i = cm.triangles[t];
+            longestEdge = std::max({longestEdge, glm::length(placed[i[2]] - placed[i[1]]), glm::length(placed[i[1]] - placed[i[0]]),
+                                    glm::length(placed[i[0]] - placed[i[2]])});
+        }
+        nearest = std::max(0.0, nearest - longestEdge);
+    }
     const double deeper = nearest + L.bias;  // a receiver point shallower than this cannot be q
     const double tol = w.terrainTolerance;
 
@@ -244,14 +280,53 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
         if (!grazing || !low) continue;
         // Each vertex above or under the level 3/4 of the tolerance under the ground: by the
         // ground's range under the box where that settles it (most of a rock's vertices),
-        // else by the ground under the vertex, looked up once (NaN: not yet).
+        // else by the ground under the vertex, looked up once. Only the triangles that
+        // cross the level hold the band: a triangle with every vertex above the highest
+        // ground, or every vertex under the lowest ground less the level, does not. So the
+        // triangles are taken from the mesh's triangle tree where their placed heights can
+        // meet [low - level, highest] (conservative node bounds, core/mesh_index.h), and
+        // handled in triangle order as a loop over every triangle would: the same segments,
+        // in the same order, at the cost of the triangles near the ground.
         double highest = *low;
         for (const auto& g : ground) highest = std::max({highest, g[0].y, g[1].y, g[2].y});
         const double level = 0.75 * tol;
-        placedVertices.resize(m.positions.size());
-        aboveLevel.assign(m.positions.size(), std::numeric_limits<double>::quiet_NaN());
-        std::vector<signed char>& side = vertexSide;
-        side.assign(m.positions.size(), 0);
+        const double bottom = *low - level;
+        thread_local std::vector<uint32_t> crossing;
+        crossing.clear();
+        vertexIndex(m).triangles.forEach(
+            [&](const glm::dvec3& lo, const glm::dvec3& hi) {
+                // The node's placed box (conservative: core/mesh_index.h).
+                glm::dvec3 pLo, pHi;
+                for (int a = 0; a < 3; ++a) {
+                    pHi[a] = placedCoordinateUpper(o.lsTransform, a, 1.0, lo, hi);
+                    pLo[a] = -placedCoordinateUpper(o.lsTransform, a, -1.0, lo, hi);
+                }
+                if (pHi.y < bottom || pLo.y > highest) return false;  // every vertex on one side
+                if (pHi.y - pLo.y > 0.25 * (highest - bottom)) return true;  // large: its children will tell
+                // The ground under the node alone: its vertices are all above it (no
+                // terrain counts as above), or all under it less the level. Margins: the
+                // ground's values and a vertex's height over it are rounded (~1e-15).
+                // The rectangle grown by a micrometre per 64 m chunk: a vertex on a chunk's
+                // edge is under both chunks' terrains (lsTerrainHeight takes the lower).
+                const double margin = 1e-9 * (1.0 + std::abs(pLo.y) + std::abs(pHi.y));
+                const double grown = 1e-8 * w.chunkSize;
+                pLo -= glm::dvec3(grown);
+                pHi += glm::dvec3(grown);
+                const std::optional<double> under = w.lsTerrainMinOver(pLo.x, pLo.z, pHi.x, pHi.z);
+                if (under && pHi.y < *under - level - margin) return false;
+                const std::optional<double> over = w.lsTerrainMaxOver(pLo.x, pLo.z, pHi.x, pHi.z);
+                return !(over && pLo.y > *over + margin);
+            },
+            [&](uint32_t t) { crossing.push_back(t); });
+        std::sort(crossing.begin(), crossing.end());
+        // Per vertex, computed on first use (stamp == pass): placed, side, height over the level.
+        thread_local std::vector<uint32_t> stamp;
+        thread_local uint32_t pass = 0;
+        if (stamp.size() < m.positions.size()) stamp.resize(m.positions.size(), 0);
+        if (++pass == 0) std::fill(stamp.begin(), stamp.end(), 0), pass = 1;
+        placedVertices.resize(std::max(placedVertices.size(), m.positions.size()));
+        aboveLevel.resize(std::max(aboveLevel.size(), m.positions.size()));
+        vertexSide.resize(std::max(vertexSide.size(), m.positions.size()));
         auto lookUp = [&](size_t v) {
             if (std::isnan(aboveLevel[v])) {
                 const std::optional<double> g = w.lsTerrainHeight(placedVertices[v].x, placedVertices[v].z);
@@ -259,18 +334,20 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
             }
             return aboveLevel[v];
         };
-        bool up = false, down = false;
-        for (size_t v = 0; v < m.positions.size(); ++v) {
+        auto place = [&](uint32_t v) {
+            if (stamp[v] == pass) return;
+            stamp[v] = pass;
             placedVertices[v] = o.lsTransform.apply(m.positions[v]);
+            aboveLevel[v] = std::numeric_limits<double>::quiet_NaN();
             const double y = placedVertices[v].y;
-            side[v] = y > highest ? 1 : y < *low - level ? -1 : lookUp(v) >= 0 ? 1 : -1;
-            (side[v] > 0 ? up : down) = true;
-        }
-        if (!up || !down) continue;
+            vertexSide[v] = y > highest ? 1 : y < bottom ? -1 : lookUp(v) >= 0 ? 1 : -1;
+        };
+        const std::vector<signed char>& side = vertexSide;
         const size_t firstBand = bandWeights.size();
         double length = 0.0;
-        for (size_t t = 0; t < m.triangles.size(); ++t) {
+        for (uint32_t t : crossing) {
             const auto& i = m.triangles[t];
+            for (uint32_t v : i) place(v);
             if (side[i[0]] == side[i[1]] && side[i[1]] == side[i[2]]) continue;
             std::array<glm::dvec3, 3> tri = {placedVertices[i[0]], placedVertices[i[1]], placedVertices[i[2]]};
             const std::array<double, 3> f = {lookUp(i[0]), lookUp(i[1]), lookUp(i[2])};

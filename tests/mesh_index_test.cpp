@@ -1,0 +1,217 @@
+// The per-mesh vertex trees (core/mesh_index.h): the placed boxes and linear extremes they
+// give are, bit for bit, what the loops over every vertex or triangle corner give, on
+// turned, scaled, mirrored and far-off placements (100 km), dense jagged meshes included.
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+
+#include "core/mesh_index.h"
+#include "core/window.h"
+
+namespace shadowcull {
+namespace {
+
+bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+void expectSameBox(const Aabb& a, const Aabb& b, const std::string& what) {
+    for (int k = 0; k < 3; ++k) {
+        EXPECT_TRUE(sameBits(a.min[k], b.min[k])) << what << " min[" << k << "] " << a.min[k] << " vs " << b.min[k];
+        EXPECT_TRUE(sameBits(a.max[k], b.max[k])) << what << " max[" << k << "] " << a.max[k] << " vs " << b.max[k];
+    }
+}
+
+// A jagged sheet (a scanned surface: heights zigzag by 3 cm) of n x n cells, two groups
+// (left and right half), a few triangles with a repeated vertex, and unused vertices far out.
+Mesh jaggedSheet(int n, std::mt19937& rng) {
+    Mesh m;
+    std::uniform_real_distribution<double> jitter(-1e-3, 1e-3);
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i)
+            m.positions.push_back({4.0 * i / n - 2.0 + jitter(rng), ((i + j) % 2 ? 0.03 : 0.0) + jitter(rng),
+                                   4.0 * j / n - 2.0 + jitter(rng)});
+    auto at = [&](int i, int j) { return uint32_t(j * (n + 1) + i); };
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const uint32_t g = i < n / 2 ? 0 : 1;
+            m.triangles.push_back({at(i, j), at(i + 1, j + 1), at(i + 1, j)});
+            m.triangles.push_back({at(i, j), at(i, j + 1), at(i + 1, j + 1)});
+            m.triangleGroup.push_back(g);
+            m.triangleGroup.push_back(g);
+        }
+    // Degenerate triangles reaching beyond the sheet: in the group's box, not in the box of
+    // its triangles with area.
+    m.positions.push_back({9.0, 5.0, -7.0});
+    const uint32_t far = uint32_t(m.positions.size() - 1);
+    m.triangles.push_back({far, far, at(0, 0)});
+    m.triangleGroup.push_back(0);
+    m.positions.push_back({-30.0, -30.0, 30.0});  // used by no triangle
+    m.groups.resize(3);  // group 2 has no triangle
+    return m;
+}
+
+RowTransform randomTransform(std::mt19937& rng, double offset) {
+    std::uniform_real_distribution<double> angle(0.0, 6.283185307179586), scale(0.3, 3.0), unit(-1.0, 1.0);
+    const double a = angle(rng), b = angle(rng);
+    const glm::dvec3 s(scale(rng), scale(rng), scale(rng) * (unit(rng) < 0 ? -1.0 : 1.0));  // mirrored half the time
+    RowTransform t;
+    // A turn about y, then a tilt about x, scaled per axis.
+    const glm::dvec3 r0(std::cos(a), 0.0, -std::sin(a)), r1(0.0, 1.0, 0.0), r2(std::sin(a), 0.0, std::cos(a));
+    auto tilt = [&](const glm::dvec3& r) { return glm::dvec3(r.x, r.y * std::cos(b) - r.z * std::sin(b), r.y * std::sin(b) + r.z * std::cos(b)); };
+    t.rows[0] = s.x * tilt(r0);
+    t.rows[1] = s.y * tilt(r1);
+    t.rows[2] = s.z * tilt(r2);
+    t.rows[3] = glm::dvec3(offset + 50.0 * unit(rng), 20.0 * unit(rng), -offset + 50.0 * unit(rng));
+    return t;
+}
+
+TEST(MeshIndex, PlacedBoxesAreTheLoopsBitForBit) {
+    std::mt19937 rng(13);
+    for (int n : {3, 40, 150}) {
+        const Mesh mesh = jaggedSheet(n, rng);
+        const MeshVertexIndex& index = vertexIndex(mesh);
+        ASSERT_EQ(index.group.size(), 3u);
+        EXPECT_EQ(index.groupTriangles[0], uint64_t(n * (n / 2) * 2 + 1));
+        EXPECT_TRUE(index.group[2]->empty());
+        for (double offset : {0.0, 1e3, 1e5}) {
+            for (int rep = 0; rep < 20; ++rep) {
+                WindowObject o;
+                o.mesh = &mesh;
+                o.lsTransform = randomTransform(rng, offset);
+                const std::string what = "n " + std::to_string(n) + " offset " + std::to_string(offset);
+                for (uint32_t g = 0; g < 3; ++g)
+                    for (bool withArea : {false, true}) {
+                        const Aabb fast = lsGroupBounds(o, g, withArea), loop = lsGroupBoundsByLoop(o, g, withArea);
+                        EXPECT_EQ(fast.empty(), loop.empty());
+                        if (!loop.empty()) expectSameBox(fast, loop, what + " group " + std::to_string(g));
+                    }
+                // Every used vertex, in index order (the window's object bounds).
+                Aabb loop;
+                std::vector<char> used(mesh.positions.size(), 0);
+                for (const auto& tri : mesh.triangles)
+                    for (uint32_t v : tri) used[v] = 1;
+                for (size_t v = 0; v < used.size(); ++v)
+                    if (used[v]) loop.extend(o.lsTransform.apply(mesh.positions[v]));
+                const auto fast = placedBox(*index.used, mesh.positions, o.lsTransform);
+                ASSERT_TRUE(fast);
+                expectSameBox(Aabb{fast->first, fast->second}, loop, what + " used");
+                // The unused vertex widens only the box of every position.
+                const auto all = placedBox(*index.positions, mesh.positions, o.lsTransform);
+                ASSERT_TRUE(all);
+                EXPECT_LE(all->first.x, fast->first.x);
+                // Linear extremes as the receiver-side search takes them (footprints, depths).
+                for (int d = 0; d < 4; ++d) {
+                    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+                    const glm::dvec3 dir = glm::normalize(glm::dvec3(unit(rng), unit(rng) - 1.5, unit(rng)));
+                    double best = -std::numeric_limits<double>::infinity();
+                    for (const auto& tri : mesh.triangles)
+                        for (uint32_t v : tri)
+                            if (mesh.triangleGroup[&tri - mesh.triangles.data()] == 1)
+                                best = std::max(best, glm::dot(dir, o.lsTransform.apply(mesh.positions[v])));
+                    const double viaTree = index.group[1]->maximum(
+                        [&](const glm::dvec3& lo, const glm::dvec3& hi) { return placedDotUpper(o.lsTransform, dir, lo, hi); },
+                        [&](uint32_t v) { return glm::dot(dir, o.lsTransform.apply(mesh.positions[v])); });
+                    EXPECT_TRUE(sameBits(best, viaTree)) << what << " dot " << best << " vs " << viaTree;
+                }
+            }
+        }
+    }
+}
+
+// The bounds are conservative: every vertex's placed value lies under them, and so does
+// the true value of every point of the box (checked at its corners, in long double).
+TEST(MeshIndex, NodeBoundsHoldEveryVertex) {
+    std::mt19937 rng(7);
+    const Mesh mesh = jaggedSheet(60, rng);
+    const VertexTree& tree = *vertexIndex(mesh).used;
+    for (int rep = 0; rep < 30; ++rep) {
+        const RowTransform t = randomTransform(rng, rep % 2 ? 1e5 : 0.0);
+        const glm::dvec3 dir = glm::normalize(glm::dvec3(0.3, -1.0, 0.2 * rep - 3.0));
+        for (const VertexTree::Node& n : tree.nodes())
+            for (uint32_t k = n.begin; k < n.end; ++k) {
+                const glm::dvec3& p = mesh.positions[tree.order()[k]];
+                for (int axis = 0; axis < 3; ++axis)
+                    for (double s : {1.0, -1.0})
+                        EXPECT_LE(s * t.apply(p)[axis], placedCoordinateUpper(t, axis, s, n.lo, n.hi));
+                EXPECT_LE(glm::dot(dir, t.apply(p)), placedDotUpper(t, dir, n.lo, n.hi));
+            }
+    }
+}
+
+// A zero coordinate: -0 and +0 compare equal and the loop keeps the first it met, so the
+// tree hands the box back to the loop (which gives the loop's sign).
+TEST(MeshIndex, ZeroCoordinatesAreTheLoopsToo) {
+    Mesh m;
+    m.positions = {{0.0, 1.0, 2.0}, {-0.0, -1.0, -1.0}, {0.0, 2.0, 2.0}, {1.0, 1.0, 2.0}};
+    m.triangles = {{1, 0, 2}, {0, 3, 2}};
+    m.triangleGroup = {0, 0};
+    m.groups.resize(1);
+    WindowObject o;
+    o.mesh = &m;
+    o.lsTransform.rows[3] = glm::dvec3(-0.0, 0.0, 0.0);
+    EXPECT_FALSE(placedBox(*vertexIndex(m).group[0], m.positions, o.lsTransform));
+    const Aabb fast = lsGroupBounds(o, 0, false), loop = lsGroupBoundsByLoop(o, 0, false);
+    expectSameBox(fast, loop, "zero");
+    EXPECT_TRUE(std::signbit(fast.min.x));  // the first corner met: vertex 1, every term -0
+}
+
+TEST(MeshIndex, ACopyOfAMeshBuildsItsOwnIndex) {
+    std::mt19937 rng(1);
+    Mesh a = jaggedSheet(4, rng);
+    const MeshVertexIndex& ia = vertexIndex(a);
+    Mesh b = a;
+    b.positions[0].x += 100.0;
+    const MeshVertexIndex& ib = vertexIndex(b);
+    EXPECT_NE(&ia, &ib);
+    WindowObject o;
+    o.mesh = &b;
+    expectSameBox(lsGroupBounds(o, 0, false), lsGroupBoundsByLoop(o, 0, false), "copy");
+}
+
+
+// The terrain's extremes over a rectangle (the receiver-side band's filter relies on them):
+// every height under the rectangle lies between them, on two chunks with unmatched edges.
+TEST(MeshIndex, TerrainExtremesBoundEveryHeightUnderARectangle) {
+    std::mt19937 rng(19);
+    std::uniform_real_distribution<double> height(-3.0, 9.0), unit(0.0, 1.0);
+    Heightfield a, b;
+    for (Heightfield* hf : {&a, &b}) {
+        hf->n = 17;
+        hf->size = 64.0;
+        for (int k = 0; k < 17 * 17; ++k) hf->heights.push_back(height(rng));
+    }
+    BakeWindow w;
+    w.chunkSize = 64.0;
+    for (int c = 0; c < 2; ++c) {
+        WindowObject o;
+        o.kind = ChunkObject::Kind::Terrain;
+        o.heightfield = c ? &b : &a;
+        o.lsTerrainOrigin = glm::dvec3(64.0 * c, -2.0, 0.0);
+        w.terrainObjects.push_back(w.objects.size());
+        w.objects.push_back(o);
+    }
+    for (int rep = 0; rep < 300; ++rep) {
+        const double x0 = 120.0 * unit(rng), z0 = 60.0 * unit(rng);
+        const double x1 = std::min(127.9, x0 + 10.0 * unit(rng)), z1 = std::min(63.9, z0 + 10.0 * unit(rng));
+        const std::optional<double> lo = w.lsTerrainMinOver(x0, z0, x1, z1), hi = w.lsTerrainMaxOver(x0, z0, x1, z1);
+        ASSERT_TRUE(lo && hi);
+        double seenLo = 1e300, seenHi = -1e300;
+        for (int k = 0; k < 200; ++k) {
+            const double x = x0 + (x1 - x0) * unit(rng), z = z0 + (z1 - z0) * unit(rng);
+            const double h = *w.lsTerrainHeight(x, z);
+            EXPECT_LE(h, *hi + 1e-12);
+            EXPECT_GE(h, *lo - 1e-12);
+            seenLo = std::min(seenLo, h);
+            seenHi = std::max(seenHi, h);
+        }
+        EXPECT_LE(*hi, seenHi + 12.0);  // a bound, not a guess: near what the samples saw
+    }
+    // Part of the rectangle without terrain: nothing.
+    EXPECT_FALSE(w.lsTerrainMaxOver(100.0, 10.0, 130.0, 20.0));
+}
+
+}  // namespace
+}  // namespace shadowcull
