@@ -41,6 +41,8 @@ namespace {
 constexpr uint64_t kGeneratorVersion = 3;
 // The same for the issue-13 worlds (D, D2k, R) alone, so that S, M and L stay cached.
 constexpr uint64_t kIssue13GeneratorVersion = 1;
+// R alone (2: trees and a high sun, issue 19), so that D and D2k stay cached.
+constexpr uint64_t kRealMapGeneratorVersion = 2;
 constexpr double kPi = 3.14159265358979323846;
 
 // ---------------------------------------------------------------------------------------
@@ -699,7 +701,12 @@ WorldStats writeIssue13World(const WorldSpec& spec, const std::string& dir) {
             mesh(names.back(), scannedRock(shapes.back(), freq[r], 1401 + r, "stone"));
         }
         b.addLight(LightSpec::directional("sun_low", dirFrom(17, 35)).withBias(0.05));
-        st.directionalLights = 1;
+        // Issue 19: the real map's case, a sun 75 degrees high, beside the low one.
+        b.addLight(LightSpec::directional("sun_high", dirFrom(75, 200)).withBias(0.05));
+        st.directionalLights = 2;
+        // Issue 19: trees among the rocks (alpha-tested crowns), a few per chunk.
+        mesh("pine_a", pineTree(11.0, 5, 7));
+        mesh("oak_a", broadleafTree(101, 3.5, 3.2, 36));
 
         for (int i = 0; i < spec.chunksX; ++i)
             for (int j = 0; j < spec.chunksZ; ++j) {
@@ -723,6 +730,16 @@ WorldStats writeIssue13World(const WorldSpec& spec, const std::string& dir) {
                                                      : rng.uniform(1.4, 1.9) * hh;
                     place("rock", names[type],
                           placed({x, lowestGround(x, z, 0.6 * foot) + hh - sink, z}, rng.uniform(0, 360), scale));
+                }
+                // Trees from their own stream, after the rocks (which keep their places).
+                DeterministicRng treeRng(chunkSeed(spec.seed, gx, gz, 19));
+                SpotPicker treeSpot{treeRng, cx, cz, S, spot.taken};  // clear of the rocks
+                const int nTrees = 2 + int(treeRng.below(7));
+                for (int t = 0; t < nTrees; ++t) {
+                    const bool pine = treeRng.uniform(0, 1) < 0.5;
+                    const auto [x, z] = treeSpot(2.0, 0.5);
+                    place("tree", pine ? "pine_a" : "oak_a",
+                          placed({x, ground(x, z), z}, treeRng.uniform(0, 360), glm::dvec3(treeRng.uniform(0.8, 1.2))));
                 }
             }
     }
@@ -830,6 +847,7 @@ uint64_t specHash(const WorldSpec& s) {
     // Fields added with issue 13: only in the other kinds' keys, so that the cached S, M and
     // L worlds stay valid (their output did not change).
     if (s.kind != WorldKind::Forest) o << "|kind" << int(s.kind) << "|" << s.meshTriangles << "|i13v" << kIssue13GeneratorVersion;
+    if (s.kind == WorldKind::RealMap) o << "|r" << kRealMapGeneratorVersion;
     uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a
     for (unsigned char c : o.str()) {
         h ^= c;

@@ -24,7 +24,8 @@
 //   the same placements (same seed, same transforms) of the same shapes tessellated with
 //   about 2k triangles each.
 // - Real-map-like (R): rolling hills and many small rocks (a few hundred triangles each,
-//   six unique), most of them half-buried, under a low sun (17 degrees).
+//   six unique), most of them half-buried, and 2-8 trees per chunk, under a low sun (17
+//   degrees) and a high one (75 degrees, issue 19).
 #pragma once
 
 #include <cstdint>
@@ -64,7 +65,7 @@ WorldSpec worldXL();  // 100 x 100 chunks, ~2.8 M models (issue 16: memory follo
 // Issue 13.
 WorldSpec worldD();    // 6 x 6 chunks of 64 m, dense meshes (51k-180k triangles), ~500 placements
 WorldSpec worldD2k();  // D with every mesh at 2,048 triangles (same placements)
-WorldSpec worldR();    // 20 x 20 chunks of 64 m, ~48k small rocks, low sun
+WorldSpec worldR();    // 20 x 20 chunks of 64 m, ~48k small rocks, trees, a low and a high sun
 // "S", "M", "L", "D", "D2k", "R" (case-insensitive); false for anything else.
 bool worldByName(const std::string& name, WorldSpec& out);
 
