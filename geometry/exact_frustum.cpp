@@ -495,9 +495,12 @@ template <class Kn>
 bool shadedWhole(const std::vector<typename Kn::Point_3>& poly, const ShadeTest<Kn>& t) {
     thread_local std::vector<Triangle> occluders;  // scratch: runs per reached part
     occluders.clear();
-    (*t.source)(boxOf(poly), occluders);
+    t.source->find(boxOf(poly), occluders);
     for (const Triangle& o : occluders)
-        if (shadesWhole<Kn>(o, poly, t)) return true;
+        if (shadesWhole<Kn>(o, poly, t)) {
+            t.source->shadedSome.store(true, std::memory_order_relaxed);
+            return true;
+        }
     return false;
 }
 

@@ -18,8 +18,10 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <functional>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -31,8 +33,15 @@ namespace shadowcull::geometry {
 using Triangle = std::array<glm::dvec3, 3>;  // window-local metres
 
 // Opaque triangles (window-local) that may lie between the light and the points of a
-// window-local box: a superset is fine, each is tested exactly. Appends to `out`.
-using OccluderSource = std::function<void(const std::array<glm::dvec3, 2>& lsBox, std::vector<Triangle>& out)>;
+// window-local box (`find` appends them to `out`; a superset is fine, each is tested
+// exactly), and whether the exact tests dropped a reached part because one of them shaded
+// it wholly (for a proof's reason).
+struct OccluderSource {
+    using Find = std::function<void(const std::array<glm::dvec3, 2>& lsBox, std::vector<Triangle>& out)>;
+    explicit OccluderSource(Find f) : find(std::move(f)) {}
+    Find find;
+    mutable std::atomic<bool> shadedSome{false};
+};
 
 struct LightGeometry {
     bool directional = true;

@@ -623,7 +623,10 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 });
                 decide(d, Verdict::Culled, "geometry",
                        "no receiver in the shadow volume (" + std::to_string(casterCount) +
-                           " caster triangles; volume within " + worldBox(volume, window.wsOrigin) + ")");
+                           " caster triangles; volume within " + worldBox(volume, window.wsOrigin) + ")" +
+                           (occluders && occluders->shadedSome.load()
+                                ? "; where it reaches a receiver, one opaque triangle shades the caster (p not lit)"
+                                : ""));
                 ++culled;
             }
         });

@@ -60,6 +60,7 @@ TEST(ShadedCaster, PlateUnderARoofIsProvedZeroByTheGeometryStage) {
     ASSERT_NE(d, nullptr);
     EXPECT_EQ(d->verdict, Verdict::Culled) << d->stage << ": " << d->reason();
     EXPECT_EQ(d->stage, std::string("geometry"));
+    EXPECT_NE(d->reason().find("p not lit"), std::string_view::npos) << d->reason();  // the proof says how
     const Decision* dr = findDecision(r, objects.at(roof), 0, 0);
     ASSERT_NE(dr, nullptr);
     EXPECT_EQ(dr->verdict, Verdict::Kept) << "the roof's shadow falls on the plate and the ground";
