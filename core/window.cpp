@@ -123,9 +123,7 @@ bool BakeWindow::lsGroundOver(double x0, double z0, double x1, double z1, std::v
                 for (int i = i0; i <= i1; ++i)
                     for (int half = 0; half < 2; ++half) {
                         // Heightfield::toMesh: cell (i, j) holds triangles 2 (j cells + i) and the next.
-                        const auto& t = o.mesh->triangles[2 * (size_t(j) * size_t(cells) + size_t(i)) + size_t(half)];
-                        out.push_back({o.lsTransform.apply(o.mesh->positions[t[0]]), o.lsTransform.apply(o.mesh->positions[t[1]]),
-                                       o.lsTransform.apply(o.mesh->positions[t[2]])});
+                        out.push_back(o.lsTriangle(2 * (size_t(j) * size_t(cells) + size_t(i)) + size_t(half)));
                     }
         },
         [&](const GroundOpening& g) {

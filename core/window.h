@@ -25,7 +25,20 @@ struct Aabb {
     void extend(const glm::dvec3& p) { min = glm::min(min, p); max = glm::max(max, p); }
     void extend(const Aabb& b) { min = glm::min(min, b.min); max = glm::max(max, b.max); }
     bool empty() const { return min.x > max.x; }
+    // Corner k takes x from max when bit 0 of k is set, y when bit 1 is, z when bit 2 is.
+    std::array<glm::dvec3, 8> corners() const {
+        std::array<glm::dvec3, 8> c;
+        for (int k = 0; k < 8; ++k) c[size_t(k)] = {k & 1 ? max.x : min.x, k & 2 ? max.y : min.y, k & 4 ? max.z : min.z};
+        return c;
+    }
 };
+
+// The corners of a box in mesh coordinates mapped by `lsFromMesh` (in corners() order).
+inline std::array<glm::dvec3, 8> placedCorners(const Aabb& msBox, const RowTransform& lsFromMesh) {
+    std::array<glm::dvec3, 8> c = msBox.corners();
+    for (glm::dvec3& p : c) p = lsFromMesh.apply(p);
+    return c;
+}
 
 // One loaded model or terrain of the window.
 struct WindowObject {
@@ -40,6 +53,14 @@ struct WindowObject {
     glm::dvec3 lsTerrainOrigin{0.0};           // terrain only: its chunk origin, window-local
     Aabb lsBounds;                    // window-local bounds of all triangles
     std::string label;                // "0000ffffo.chunk model #2 (uuid)" for reports
+
+    // Mesh triangle `t` placed in the window: lsTransform applied to its three vertices
+    // (the very doubles every stage tests).
+    std::array<glm::dvec3, 3> lsTriangle(size_t t) const {
+        const auto& i = mesh->triangles[t];
+        return {lsTransform.apply(mesh->positions[i[0]]), lsTransform.apply(mesh->positions[i[1]]),
+                lsTransform.apply(mesh->positions[i[2]])};
+    }
 };
 
 // A window-local chunk square [x0,x1] x [z0,z1] (metres) with no terrain loaded: points

@@ -322,10 +322,8 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
         // Triangle `t` of object `k`, window-local (three distinct mesh vertices: the caller checked).
         auto makeReceiver = [&](uint32_t k, uint32_t t) {
             const WindowObject& o = window.objects[k];
-            const auto& i = o.mesh->triangles[t];
             Receiver r;
-            r.tri = {o.lsTransform.apply(o.mesh->positions[i[0]]), o.lsTransform.apply(o.mesh->positions[i[1]]),
-                     o.lsTransform.apply(o.mesh->positions[i[2]])};
+            r.tri = o.lsTriangle(t);
             r.box = triangleBox(r.tri);
             r.twoSided = o.mesh->groups[o.mesh->triangleGroup[t]].twoSided();
             r.mirrored = o.flipsWinding;
@@ -352,8 +350,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     if (wo.mesh->triangleGroup[t] != uint32_t(task.group)) continue;
                     const auto& i = wo.mesh->triangles[t];
                     const glm::dvec3 &a = wo.mesh->positions[i[0]], &b = wo.mesh->positions[i[1]], &c = wo.mesh->positions[i[2]];
-                    if (!hasRepeatedVertex(a, b, c) && f(Triangle{wo.lsTransform.apply(a), wo.lsTransform.apply(b), wo.lsTransform.apply(c)}))
-                        return;
+                    if (!hasRepeatedVertex(a, b, c) && f(wo.lsTriangle(t))) return;
                 }
             };
             for (int l = 0; l < cv.lightCount; ++l) {
@@ -375,9 +372,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 // tolerance under the lowest ground under it.
                 auto nodeBuried = [&](const WindowObject& o, const Aabb& msBox) {
                     Aabb ls;
-                    for (int c = 0; c < 8; ++c)
-                        ls.extend(o.lsTransform.apply({c & 1 ? msBox.max.x : msBox.min.x, c & 2 ? msBox.max.y : msBox.min.y,
-                                                       c & 4 ? msBox.max.z : msBox.min.z}));
+                    for (const glm::dvec3& p : placedCorners(msBox, o.lsTransform)) ls.extend(p);
                     return underTerrain(window, {ls.min, ls.max}, margin);
                 };
                 auto forReceivers = [&](const ShadowQuery& q, const Aabb& qBox, const auto& test,
@@ -433,10 +428,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                              return trees_.tree(mesh).visit([&](const Aabb& b) { return mq.mayHold(b); },
                                                                             [&](uint32_t tri) {
                                                                                 if (mesh.groups[mesh.triangleGroup[tri]].alphaTested) return false;
-                                                                                const auto& i = mesh.triangles[tri];
-                                                                                out.push_back({o.lsTransform.apply(mesh.positions[i[0]]),
-                                                                                               o.lsTransform.apply(mesh.positions[i[1]]),
-                                                                                               o.lsTransform.apply(mesh.positions[i[2]])});
+                                                                                out.push_back(o.lsTriangle(tri));
                                                                                 return out.size() >= kMaxOccluders;
                                                                             });
                                          });
@@ -522,12 +514,8 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     // receiver gets holds no receiver behind it: a half-buried rock beside a
                     // terrain triangle whose column meets only its buried half.
                     auto objectMay = [&](uint32_t k) {
-                        const Aabb& b = objectBoxes[k];
-                        const glm::dvec3 corners[8] = {
-                            {b.min.x, b.min.y, b.min.z}, {b.max.x, b.min.y, b.min.z}, {b.min.x, b.max.y, b.min.z},
-                            {b.max.x, b.max.y, b.min.z}, {b.min.x, b.min.y, b.max.z}, {b.max.x, b.min.y, b.max.z},
-                            {b.min.x, b.max.y, b.max.z}, {b.max.x, b.max.y, b.max.z}};
-                        return !filter.allInFront(corners, 8, leastBias);
+                        const std::array<glm::dvec3, 8> corners = objectBoxes[k].corners();
+                        return !filter.allInFront(corners.data(), 8, leastBias);
                     };
                     if (!exhaustive) return forReceivers(*query, local ? limits : frustumBox(t, L, limits, margin), test, objectMay);
                     for (uint32_t k = 0; k < window.objects.size() && !candidate; ++k) {
@@ -576,14 +564,10 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         [&](uint32_t tri, uint32_t position) {
                             if (cm.triangleGroup[tri] != uint32_t(task.group)) return;
                             const FloatModeScope ieeeHere(FloatModeScope::Underflow::Gradual);  // as above
-                            const auto& i = cm.triangles[tri];
                             std::string note;
                             uint64_t n = 0;
                             glm::dvec3 at(0.0);
-                            const bool found = castsOnSomething(
-                                {wo.lsTransform.apply(cm.positions[i[0]]), wo.lsTransform.apply(cm.positions[i[1]]),
-                                 wo.lsTransform.apply(cm.positions[i[2]])},
-                                note, n, at);
+                            const bool found = castsOnSomething(wo.lsTriangle(tri), note, n, at);
                             if (!found && n == 0) return;
                             const std::lock_guard<std::mutex> lock(firstMutex);
                             if (n > 0) testsAt.emplace_back(position, n);

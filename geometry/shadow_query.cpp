@@ -131,8 +131,9 @@ ShadowQuery ShadowQuery::ofCluster(const Aabb& b, const RowTransform& m, const L
     // points inside the box: within a few ulps of the exact map, far inside the margin
     // (1e-9 of the window's extent) that every half-space below allows.
     Aabb corners;
+    const std::array<glm::dvec3, 8> placed = placedCorners(b, m);
     for (int k = 0; k < 8; ++k) {
-        q.pts_[size_t(k)] = m.apply({k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z});
+        q.pts_[size_t(k)] = placed[size_t(k)];
         corners.extend(q.pts_[size_t(k)]);
     }
     const double k0 = dilation > 0 ? dilation * (1 + 1e-9) : 0.0;

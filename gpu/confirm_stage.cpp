@@ -395,7 +395,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     std::vector<std::vector<uint32_t>> nearTriangles;  // per near object, ascending
     for (size_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
-        if (o.mesh->triangles.empty() || o.lsBounds.empty() || !reachesCasters(boxCorners(o.lsBounds))) continue;
+        if (o.mesh->triangles.empty() || o.lsBounds.empty() || !reachesCasters(o.lsBounds.corners())) continue;
         std::vector<uint32_t> selected;
         if (options_.treeSelection)
             work.treeOf(o.mesh).visit([&](const Aabb& box) { return reachesCasters(placedCorners(box, o.lsTransform)); },
@@ -500,7 +500,7 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         tbb::parallel_for(size_t(0), near.size(), [&](size_t i) {
             const FloatModeScope taskMode(FloatModeScope::Underflow::Gradual);  // as run()
             ObjectPieces& out = pieces[i];
-            const std::array<glm::dvec3, 8> corners = boxCorners(w.objects[near[i]].lsBounds);
+            const std::array<glm::dvec3, 8> corners = w.objects[near[i]].lsBounds.corners();
             if (vp.misses(corners.data(), 8, dilatePx)) return;  // nothing of it reaches this view's casters
             for (const Sheet& s : surfaces[i].sheets) {
                 SheetPieces p;

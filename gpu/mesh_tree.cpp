@@ -79,14 +79,6 @@ MeshTree::MeshTree(const Mesh& mesh) {
     }
 }
 
-std::array<glm::dvec3, 8> placedCorners(const Aabb& box, const RowTransform& transform) {
-    std::array<glm::dvec3, 8> c;
-    for (int k = 0; k < 8; ++k)
-        c[size_t(k)] = transform.apply({k & 1 ? box.max.x : box.min.x, k & 2 ? box.max.y : box.min.y,
-                                        k & 4 ? box.max.z : box.min.z});
-    return c;
-}
-
 Aabb placedBounds(const Aabb& box, const RowTransform& transform) {
     Aabb out;
     for (const glm::dvec3& p : placedCorners(box, transform)) out.extend(p);

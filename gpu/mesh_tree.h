@@ -70,9 +70,8 @@ private:
     std::vector<Node> nodes_;
 };
 
-// The corners of a mesh-coordinate box placed by `transform` (window-local). Their convex
-// hull holds the placed box, so every placed point of the box.
-std::array<glm::dvec3, 8> placedCorners(const Aabb& box, const RowTransform& transform);
+// (placedCorners, core/window.h: the corners of a mesh-coordinate box placed in the window;
+// their convex hull holds the placed box, so every placed point of the box.)
 
 // The axis-aligned window-local box of a placed mesh-coordinate box, widened by the rounding
 // of the transform (1e-9 of the coordinates' size): it holds every placed vertex of the box

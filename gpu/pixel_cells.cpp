@@ -50,12 +50,6 @@ bool behindCasters(const std::vector<RasterPiece>& pieces, const CellMask& mask,
     return true;
 }
 
-std::array<glm::dvec3, 8> boxCorners(const Aabb& b) {
-    std::array<glm::dvec3, 8> c;
-    for (int k = 0; k < 8; ++k) c[size_t(k)] = {k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z};
-    return c;
-}
-
 std::optional<PixelRect> hullReach(const glm::dvec3* pts, size_t n, const PieceBuilder& pb, float dilatePx) {
     const int width = pb.view().width, height = pb.view().height;
     double b[4];

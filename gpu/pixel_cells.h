@@ -130,9 +130,6 @@ bool holdsWholePixel(const std::vector<RasterPiece>& pieces);
 // depth range, but its parts behind the examined group lie behind it piece by piece.)
 bool behindCasters(const std::vector<RasterPiece>& pieces, const CellMask& mask, const LightView& v);
 
-// The corners of a box.
-std::array<glm::dvec3, 8> boxCorners(const Aabb& b);
-
 // A pixel rectangle holding reachOf() of every piece the builder makes from a triangle or
 // segment within the convex hull of `pts`, with a dilation up to `dilatePx`; nothing when
 // the hull cannot be bounded so. reachOf widens a piece's box by 1.51 px + dilation +

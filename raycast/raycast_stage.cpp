@@ -113,10 +113,7 @@ struct Tracer {
     double backDist;   // directional lights: ray origins this far before the sample
 
     glm::dvec3 triangleNormal(const WindowObject& o, uint32_t prim) const {
-        const auto& tri = o.mesh->triangles[prim];
-        const glm::dvec3 a = o.lsTransform.apply(o.mesh->positions[tri[0]]);
-        const glm::dvec3 b = o.lsTransform.apply(o.mesh->positions[tri[1]]);
-        const glm::dvec3 c = o.lsTransform.apply(o.mesh->positions[tri[2]]);
+        const auto [a, b, c] = o.lsTriangle(prim);
         glm::dvec3 n = glm::cross(b - a, c - a);
         return o.flipsWinding ? -n : n;
     }
@@ -137,10 +134,8 @@ struct Tracer {
     Depth depthOf(const glm::dvec3& origin, const glm::dvec3& dir, const Hit& h) const {
         const Depth coarse{double(h.t), eps};
         const WindowObject& o = w.objects[h.object];
-        const auto& tri = o.mesh->triangles[h.prim];
-        const glm::dvec3 a = o.lsTransform.apply(o.mesh->positions[tri[0]]);
-        const glm::dvec3 e1 = o.lsTransform.apply(o.mesh->positions[tri[1]]) - a;
-        const glm::dvec3 e2 = o.lsTransform.apply(o.mesh->positions[tri[2]]) - a;
+        const auto [a, b, c] = o.lsTriangle(h.prim);
+        const glm::dvec3 e1 = b - a, e2 = c - a;
         const glm::dvec3 pv = glm::cross(dir, e2);
         const double det = glm::dot(e1, pv);  // -dir . (e1 x e2)
         if (!(std::abs(det) > 1e-3 * glm::length(glm::cross(e1, e2)))) return coarse;

@@ -97,13 +97,6 @@ Footprint footprintOf(const LightFrame& f, const Points& points, double grow) {
     return fp;
 }
 
-std::array<glm::dvec3, 8> corners(const Aabb& b) {
-    std::array<glm::dvec3, 8> c;
-    for (int k = 0; k < 8; ++k)
-        c[size_t(k)] = {k & 1 ? b.max.x : b.min.x, k & 2 ? b.max.y : b.min.y, k & 4 ? b.max.z : b.min.z};
-    return c;
-}
-
 // A segment of the terrain band on a receiver that crosses the ground.
 struct BandSegment {
     glm::dvec3 a, b;
@@ -117,9 +110,7 @@ bool isLargeCaster(const WindowObject& o, uint32_t group, int areaSamples, doubl
     const Mesh& m = *o.mesh;
     for (size_t t = 0; t < m.triangles.size(); ++t) {
         if (m.triangleGroup[t] != group) continue;
-        const auto& i = m.triangles[t];
-        const glm::dvec3 a = o.lsTransform.apply(m.positions[i[0]]), b = o.lsTransform.apply(m.positions[i[1]]),
-                         c = o.lsTransform.apply(m.positions[i[2]]);
+        const auto [a, b, c] = o.lsTriangle(t);
         area += 0.5 * glm::length(glm::cross(b - a, c - a));
     }
     return std::sqrt(area / double(std::max(1, areaSamples))) >= minSpacing;
@@ -220,7 +211,7 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
     for (uint32_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
         const bool terrain = o.kind == ChunkObject::Kind::Terrain;
-        const auto oc = corners(o.lsBounds);
+        const auto oc = o.lsBounds.corners();
         double oDeep = -std::numeric_limits<double>::infinity();
         for (const glm::dvec3& p : oc) oDeep = std::max(oDeep, frame.depth(p));
         if (!(oDeep > deeper)) continue;
@@ -231,9 +222,7 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
             Source src{k, true, {}, {}, 0};
             double area = 0.0;
             for (size_t t = 0; t < m.triangles.size(); ++t) {
-                const auto& i = m.triangles[t];
-                std::array<glm::dvec3, 3> tri = {o.lsTransform.apply(m.positions[i[0]]), o.lsTransform.apply(m.positions[i[1]]),
-                                                 o.lsTransform.apply(m.positions[i[2]])};
+                const std::array<glm::dvec3, 3> tri = o.lsTriangle(t);
                 if (!(std::max({frame.depth(tri[0]), frame.depth(tri[1]), frame.depth(tri[2])}) > deeper)) continue;
                 if (!fp.meets(footprintOf(frame, tri, 0.0))) continue;
                 const glm::dvec3 n = glm::cross(tri[1] - tri[0], tri[2] - tri[0]) * (o.flipsWinding ? -1.0 : 1.0);
