@@ -357,12 +357,17 @@ glm::dvec3 meanOf(const std::vector<PointT>& poly) {
     return sum / double(poly.size());
 }
 
-// The sign of x when certain, else 0 (exact numbers: their sign; intervals: 0 unless the
-// interval excludes 0). So a test written with it only says yes when the exact answer is yes.
-int certainSign(const FT& x) { return int(CGAL::sign(x)); }
-int certainSign(const IK::FT& x) { return x.inf() > 0 ? 1 : x.sup() < 0 ? -1 : 0; }
-bool certainlyNonNegative(const FT& x) { return CGAL::sign(x) != CGAL::NEGATIVE; }
-bool certainlyNonNegative(const IK::FT& x) { return x.inf() >= 0; }
+// The sign of x when certain, else 0; and whether x >= 0 certainly (both from positive():
+// exact numbers always answer, intervals only when they exclude the boundary). A test
+// written with them says yes only when the exact answer is yes.
+template <class Num>
+int certainSign(const Num& x) {
+    return positive(x) == 1 ? 1 : positive(-x) == 1 ? -1 : 0;
+}
+template <class Num>
+bool certainlyNonNegative(const Num& x) {
+    return positive(-x) == 0;
+}
 
 // True when the opaque triangle `o` shades the caster point of every point of the convex
 // polygon `poly`: each lies in o's closed prism along d, and o's point on its ray lies

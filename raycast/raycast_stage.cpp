@@ -112,9 +112,9 @@ struct Tracer {
     double exactEps;   // metres: the margin on depths recomputed in double (depthOf)
     double backDist;   // directional lights: ray origins this far before the sample
 
-    glm::dvec3 triangleNormal(const WindowObject& o, uint32_t prim) const {
-        const auto [a, b, c] = o.lsTriangle(prim);
-        glm::dvec3 n = glm::cross(b - a, c - a);
+    // The front normal of `o`'s placed triangle `tri` (WindowObject::lsTriangle).
+    static glm::dvec3 frontNormal(const WindowObject& o, const std::array<glm::dvec3, 3>& tri) {
+        glm::dvec3 n = glm::cross(tri[1] - tri[0], tri[2] - tri[0]);
         return o.flipsWinding ? -n : n;
     }
 
@@ -131,10 +131,10 @@ struct Tracer {
         double t;
         double margin;
     };
-    Depth depthOf(const glm::dvec3& origin, const glm::dvec3& dir, const Hit& h) const {
+    // `tri`: the hit triangle placed in the window (WindowObject::lsTriangle).
+    Depth depthOf(const glm::dvec3& origin, const glm::dvec3& dir, const Hit& h, const std::array<glm::dvec3, 3>& tri) const {
         const Depth coarse{double(h.t), eps};
-        const WindowObject& o = w.objects[h.object];
-        const auto [a, b, c] = o.lsTriangle(h.prim);
+        const auto& [a, b, c] = tri;
         const glm::dvec3 e1 = b - a, e2 = c - a;
         const glm::dvec3 pv = glm::cross(dir, e2);
         const double det = glm::dot(e1, pv);  // -dir . (e1 x e2)
@@ -305,7 +305,7 @@ struct Tracer {
         ++*raysCast;
         if (!first || first->object != object || w.objects[object].mesh->triangleGroup[first->prim] != group)
             return std::nullopt;
-        const Depth dp = depthOf(origin, dir, *first);
+        const Depth dp = depthOf(origin, dir, *first, w.objects[first->object].lsTriangle(first->prim));
         const double tp = dp.t;
         const glm::dvec3 p = origin + dir * tp;
         if (!withinReach(L, p)) return std::nullopt;
@@ -322,13 +322,14 @@ struct Tracer {
             const Hit& h = *next;
             // Skip past this surface (and any coincident with it) for the next step.
             tnear = float(double(h.t) + 0.5 * eps);
-            const Depth dq = depthOf(origin, dir, h);
+            const WindowObject& ro = w.objects[h.object];
+            const std::array<glm::dvec3, 3> tri = ro.lsTriangle(h.prim);
+            const Depth dq = depthOf(origin, dir, h, tri);
             const double margin = std::max(dp.margin, dq.margin);
             const double gap = dq.t - tp;
             if (!(gap > L.bias + margin)) continue;
-            const WindowObject& ro = w.objects[h.object];
             const PrimitiveGroup& rg = ro.mesh->groups[ro.mesh->triangleGroup[h.prim]];
-            glm::dvec3 n = triangleNormal(ro, h.prim);
+            glm::dvec3 n = frontNormal(ro, tri);
             const double nl = glm::length(n);
             if (!(nl > 0)) continue;
             const double cosFacing = glm::dot(n / nl, dir);  // < 0: the ray meets the front
@@ -398,8 +399,7 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
         const double scale = std::max({ext.x, ext.y, ext.z}) + diag;
         Tracer tracer{window, scene.all(), scene.opaque(), im.opt, 1e-6 * scale + 1e-6, 1e-9 * scale + 1e-12, diag + 1.0};
         for (const Light& L : window.lsLights)
-            if (L.type != LightType::Directional)
-            {
+            if (L.type != LightType::Directional) {
                 tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
                 tracer.exactEps = std::max(tracer.exactEps, 1e-9 * (glm::length(L.position) + L.range) + 1e-12);
             }
