@@ -311,10 +311,12 @@ struct Tracer {
         if (!withinReach(L, p)) return std::nullopt;
 
         // q: the receivers behind p along the same line, nearest first, from where Embree
-        // may place one more than the bias behind (its distances are within eps).
+        // may place one more than the bias behind (its distances are within eps); never
+        // before the ray's origin (a p within eps of a point light, bias 0: Embree requires
+        // tnear >= 0).
         RTCIntersectContext plain;
         rtcInitIntersectContext(&plain);
-        float tnear = float(tp + L.bias - eps);
+        float tnear = float(std::max(0.0, tp + L.bias - eps));
         for (int k = 0; k < opt.maxHitsPerRay; ++k) {
             std::optional<Hit> next = closestHit(&plain, origin, dir, tnear, float(tfar));
             ++*raysCast;
