@@ -36,9 +36,6 @@ namespace {
 constexpr uint32_t kClusterAtLeast = 8;
 // Caster subtrees of at least this many triangles are walked in parallel.
 constexpr uint32_t kParallelCasters = 256;
-// Receiver meshes of at least this many triangles have their tree's nodes tested against
-// the terrain (pruning buried subtrees); smaller ones only at their leaves.
-constexpr size_t kBuriedNodesFrom = 1024;
 
 struct Receiver {
     Triangle tri;  // window-local
@@ -361,22 +358,37 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 const LightGeometry& lg = lightGeom[size_t(l)];
                 const ReceiverRules& rl = *rules[size_t(l)];
                 const bool local = L.type != LightType::Directional;
+                // Caster parts no point of which is within the light's range and cone: no p
+                // there (semantics.md, condition 3). A mesh-tree node by its placed corners'
+                // box (it holds the placed triangles; the rounding is far inside the reach
+                // margins), a triangle by its box.
+                auto outOfReach = [&](const Aabb& msBox) {
+                    Aabb ls;
+                    for (const glm::dvec3& p : placedCorners(msBox, wo.lsTransform)) ls.extend(p);
+                    return boxBeyondRange(L, ls) || boxOutsideCone(L, ls);
+                };
+                auto triangleOutOfReach = [&](const Triangle& t) {
+                    const Aabb b = triangleBox(t);
+                    return boxBeyondRange(L, b) || boxOutsideCone(L, b);
+                };
                 // The smallest bias the receiver rules give any receiver (a lower bound).
                 const double leastBias = std::max(0.0, L.bias * (1 - 1e-9) - 1e-12);
                 // Calls test(k, tri) for the receivers of the window the query may reach
                 // (both levels of the broad phase), until it returns true.
                 // `objectMay(k)`: false when no receiver of object k can be behind (then its
                 // mesh tree is not walked).
-                // A mesh-tree node's box placed in the window (its corners mapped; the
-                // rounding is far inside the margin) lies wholly deeper than the terrain
-                // tolerance under the lowest ground under it.
-                auto nodeBuried = [&](const WindowObject& o, const Aabb& msBox) {
+                // A mesh-tree node's box placed in the window: its corners mapped, widened by
+                // the margin (far above the rounding of the placed triangles' vertices).
+                auto placedBox = [&](const WindowObject& o, const Aabb& msBox) {
                     Aabb ls;
                     for (const glm::dvec3& p : placedCorners(msBox, o.lsTransform)) ls.extend(p);
-                    return underTerrain(window, {ls.min, ls.max}, margin);
+                    return grown(ls, margin);  // the placed triangles' rounding, far inside
                 };
+                // `boxMay(lsBox)`: false when no point of the window-local box can be behind
+                // the caster (then the mesh tree's node whose receiving part it holds is not
+                // walked).
                 auto forReceivers = [&](const ShadowQuery& q, const Aabb& qBox, const auto& test,
-                                        const auto& objectMay) {
+                                        const auto& objectMay, const auto& boxMay) {
                     return objectTree.visit([&](const Aabb& b) { return overlaps(b, qBox) && q.mayHold(b); },
                                             [&](uint32_t k) {
                                                 if (!objectMay(k)) return false;
@@ -386,12 +398,27 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                                 const ShadowQuery::InMesh mq = q.inMesh(o.lsTransform);
                                                 // The terrain rule per node: a subtree whose box lies wholly deeper
                                                 // than the tolerance under the ground holds no receiver (a dense
-                                                // rock's buried half, under every terrain triangle's column). Small
-                                                // meshes skip it: their leaves' rules are cached and cost less.
+                                                // rock's buried half, under every terrain triangle's column), and
+                                                // its receiving points lie in its box from that level up; a node
+                                                // whose box from there up is in front of the caster holds none
+                                                // behind (a rock's ground line, under every terrain triangle's
+                                                // column: its buried side is behind, its receiving side in front).
+                                                // Small meshes skip it (GeometryOptions::nodeTerrainRuleFrom).
                                                 const bool buriable = window.hasTerrain && o.kind != ChunkObject::Kind::Terrain &&
-                                                                      o.mesh->triangles.size() >= kBuriedNodesFrom;
+                                                                      o.mesh->triangles.size() >= options_.nodeTerrainRuleFrom;
                                                 return trees_.tree(*o.mesh).visit(
-                                                    [&](const Aabb& b) { return mq.mayHold(b) && !(buriable && nodeBuried(o, b)); },
+                                                    [&](const Aabb& b) {
+                                                        if (!mq.mayHold(b)) return false;
+                                                        if (!buriable) return true;
+                                                        Aabb ls = placedBox(o, b);
+                                                        const std::optional<double> ground =
+                                                            window.lsTerrainMinOver(ls.min.x, ls.min.z, ls.max.x, ls.max.z);
+                                                        if (!ground) return true;
+                                                        const double level = *ground - window.terrainTolerance - margin;
+                                                        if (ls.max.y < level) return false;
+                                                        ls.min.y = std::max(ls.min.y, level);
+                                                        return boxMay(ls);
+                                                    },
                                                     [&](uint32_t tri) { return test(k, tri); });
                                             });
                 };
@@ -448,6 +475,16 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     std::vector<Triangle> ground;  // terrain under a reached part (the terrain rule)
                     std::vector<GroundOpening> openings;  // squares with none under it
                     auto test = [&](uint32_t k, uint32_t tri) {
+                        // The double filters first: they hold for every bias >= 0, so with
+                        // the least one the receiver rules (facing, range, the part above the
+                        // ground: clipped against the terrain, per window and light) are made
+                        // only for triangles that may meet the frustum. On world D the
+                        // terrain's columns reach the dense rocks' ground line, thousands of
+                        // triangles per terrain triangle, most of them outside the column.
+                        if (!exhaustive) {
+                            const Triangle placed = window.objects[k].lsTriangle(tri);
+                            if (query->misses(placed) || filter.certainlyMisses(placed, leastBias)) return false;
+                        }
                         std::optional<Receiver> made;
                         const std::vector<glm::dvec3>* above = nullptr;  // its part above the ground
                         const double beta = receiver(k, tri, made, &above);
@@ -513,11 +550,13 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     // terrain rule) lies wholly in front of the caster by the smallest bias any
                     // receiver gets holds no receiver behind it: a half-buried rock beside a
                     // terrain triangle whose column meets only its buried half.
-                    auto objectMay = [&](uint32_t k) {
-                        const std::array<glm::dvec3, 8> corners = objectBoxes[k].corners();
+                    auto boxMay = [&](const Aabb& b) {
+                        const std::array<glm::dvec3, 8> corners = b.corners();
                         return !filter.allInFront(corners.data(), 8, leastBias);
                     };
-                    if (!exhaustive) return forReceivers(*query, local ? limits : frustumBox(t, L, limits, margin), test, objectMay);
+                    auto objectMay = [&](uint32_t k) { return boxMay(objectBoxes[k]); };
+                    if (!exhaustive)
+                        return forReceivers(*query, local ? limits : frustumBox(t, L, limits, margin), test, objectMay, boxMay);
                     for (uint32_t k = 0; k < window.objects.size() && !candidate; ++k) {
                         const Mesh& m = *window.objects[k].mesh;
                         for (uint32_t tri = 0; tri < m.triangles.size(); ++tri) {
@@ -547,6 +586,10 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     std::vector<std::pair<uint32_t, uint64_t>> testsAt;
                     trees_.tree(cm).visitNodesOrdered(
                         [&](const Aabb& msBox, uint32_t items) {
+                            // p lies within range and cone (semantics.md): a cluster wholly
+                            // beyond holds no caster point that counts (exact; the margins
+                            // keep every point within reach).
+                            if (local && outOfReach(msBox)) return false;
                             // A few triangles cost about what one cluster query does: test them.
                             if (items <= kClusterAtLeast) return true;
                             // Subtrees may run on other TBB threads: gradual underflow there too.
@@ -559,15 +602,17 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                     const double beta = receiver(k, tri, made);
                                     return beta >= 0 && !cq.clusterMisses(made->tri, beta);
                                 },
-                                [](uint32_t) { return true; });
+                                [](uint32_t) { return true; }, [](const Aabb&) { return true; });
                         },
                         [&](uint32_t tri, uint32_t position) {
                             if (cm.triangleGroup[tri] != uint32_t(task.group)) return;
                             const FloatModeScope ieeeHere(FloatModeScope::Underflow::Gradual);  // as above
+                            const Triangle placed = wo.lsTriangle(tri);
+                            if (local && triangleOutOfReach(placed)) return;
                             std::string note;
                             uint64_t n = 0;
                             glm::dvec3 at(0.0);
-                            const bool found = castsOnSomething(wo.lsTriangle(tri), note, n, at);
+                            const bool found = castsOnSomething(placed, note, n, at);
                             if (!found && n == 0) return;
                             const std::lock_guard<std::mutex> lock(firstMutex);
                             if (n > 0) testsAt.emplace_back(position, n);
@@ -582,7 +627,10 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     for (const auto& [position, n] : testsAt)
                         if (position <= first.load()) tested += n;
                 } else {
-                    forCasterTriangles([&](const Triangle& t) { return candidate = castsOnSomething(t, seen, tested, seenAt); });
+                    forCasterTriangles([&](const Triangle& t) {
+                        if (local && triangleOutOfReach(t)) return false;
+                        return candidate = castsOnSomething(t, seen, tested, seenAt);
+                    });
                 }
                 tests += tested;
                 if (candidate) {

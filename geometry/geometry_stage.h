@@ -23,6 +23,11 @@ struct GeometryOptions {
     // Test mode: the reference the fast path must equal. Every receiver of the window goes
     // to the exact test (no light-space hierarchy, no world grid, no double filters).
     bool exhaustive = false;
+    // Receiver meshes of at least this many triangles have their tree's nodes tested against
+    // the terrain (pruning subtrees wholly buried, and those whose part not buried lies in
+    // front of the caster); smaller ones only at their leaves, whose rules are cached and
+    // cost less. Tests lower it to run the node rules on small meshes.
+    size_t nodeTerrainRuleFrom = 1024;
 };
 
 class GeometryStage : public Stage {

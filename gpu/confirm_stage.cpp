@@ -325,11 +325,32 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     // cells) they reach. The query reads the other passes only at those pixels, so
     // everything is drawn within their bounding rectangle (scissor), and pieces that cannot
     // touch a cell the casters reach are dropped. Other pixels are never read.
+    // Point and spot lights: only the triangles with a point within range and cone (p lies
+    // there, semantics.md; exact, with the reach margins), found down the mesh's tree. A
+    // dense group the range sphere cuts is otherwise drawn whole, and its parts beyond
+    // range pass where no shadow can be.
+    const bool reachLimited = L.type != LightType::Directional;
+    auto outOfReach = [&](const Aabb& lsBox) { return boxBeyondRange(L, lsBox) || boxOutsideCone(L, lsBox); };
     std::vector<Caster> casters;  // by object, then by triangle
+    std::vector<uint32_t> inReach;
     for (size_t k = 0; k < w.objects.size(); ++k) {
         if (queryOf[k].empty()) continue;
-        const Mesh& mesh = *w.objects[k].mesh;
-        for (uint32_t tr : work.treeOf(&mesh).triangles()) {
+        const WindowObject& o = w.objects[k];
+        const Mesh& mesh = *o.mesh;
+        const std::vector<uint32_t>* triangles = &work.treeOf(&mesh).triangles();
+        if (reachLimited) {
+            inReach.clear();
+            work.treeOf(&mesh).visit([&](const Aabb& box) { return !outOfReach(placedBounds(box, o.lsTransform)); },
+                                     [&](uint32_t tr) {
+                                         const auto& t = mesh.triangles[tr];
+                                         Aabb tb;
+                                         for (int c = 0; c < 3; ++c) tb.extend(position(uint32_t(k), t[c]));
+                                         if (!outOfReach(tb)) inReach.push_back(tr);
+                                     });
+            std::sort(inReach.begin(), inReach.end());
+            triangles = &inReach;
+        }
+        for (uint32_t tr : *triangles) {
             const int id = queryOf[k][mesh.triangleGroup[tr]];
             if (id >= 0) casters.push_back({uint32_t(k), tr, uint32_t(id)});
         }

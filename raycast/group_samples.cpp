@@ -2,8 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <glm/geometric.hpp>
+
+#include "core/light_reach.h"
+#include "core/mesh_index.h"
 
 namespace shadowcull::raycast {
 
@@ -22,22 +26,14 @@ struct Tri {
     glm::dvec3 a, b, c;
 };
 
-}  // namespace
-
-std::vector<glm::dvec3> sampleMeshGroup(const Mesh& mesh, uint32_t group, int areaSamples, int maxFeatureSamples) {
-    std::vector<Tri> tris;
+// The points of sampleMeshGroup on `tris` (mesh coordinates, in mesh order), whatever
+// chose them.
+std::vector<glm::dvec3> samplePoints(const std::vector<Tri>& tris, int areaSamples, int maxFeatureSamples) {
     std::vector<double> cumulative;  // cumulative area
-    tris.reserve(mesh.triangles.size());
-    cumulative.reserve(mesh.triangles.size());
+    cumulative.reserve(tris.size());
     double total = 0.0;
-    for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-        if (mesh.triangleGroup[t] != group) continue;
-        const auto& i = mesh.triangles[t];
-        const glm::dvec3 &a = mesh.positions[i[0]], &b = mesh.positions[i[1]], &c = mesh.positions[i[2]];
-        if (hasRepeatedVertex(a, b, c)) continue;
-        Tri tri{a, b, c};
+    for (const Tri& tri : tris) {
         total += 0.5 * glm::length(glm::cross(tri.b - tri.a, tri.c - tri.a));
-        tris.push_back(tri);
         cumulative.push_back(total);
     }
     std::vector<glm::dvec3> out;
@@ -84,6 +80,25 @@ std::vector<glm::dvec3> sampleMeshGroup(const Mesh& mesh, uint32_t group, int ar
     return out;
 }
 
+// Triangle `t` of the mesh, or nothing when it repeats a vertex (no area, no samples).
+std::optional<Tri> meshTri(const Mesh& mesh, size_t t) {
+    const auto& i = mesh.triangles[t];
+    const glm::dvec3 &a = mesh.positions[i[0]], &b = mesh.positions[i[1]], &c = mesh.positions[i[2]];
+    if (hasRepeatedVertex(a, b, c)) return std::nullopt;
+    return Tri{a, b, c};
+}
+
+}  // namespace
+
+std::vector<glm::dvec3> sampleMeshGroup(const Mesh& mesh, uint32_t group, int areaSamples, int maxFeatureSamples) {
+    std::vector<Tri> tris;
+    tris.reserve(mesh.triangles.size());
+    for (size_t t = 0; t < mesh.triangles.size(); ++t)
+        if (mesh.triangleGroup[t] == group)
+            if (std::optional<Tri> tri = meshTri(mesh, t)) tris.push_back(*tri);
+    return samplePoints(tris, areaSamples, maxFeatureSamples);
+}
+
 namespace {
 
 std::vector<glm::dvec3> place(const WindowObject& object, std::vector<glm::dvec3> points) {
@@ -95,6 +110,32 @@ std::vector<glm::dvec3> place(const WindowObject& object, std::vector<glm::dvec3
 
 std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, int areaSamples, int maxFeatureSamples) {
     return place(object, sampleMeshGroup(*object.mesh, group, areaSamples, maxFeatureSamples));
+}
+
+std::vector<glm::dvec3> sampleGroupWithinReach(const WindowObject& object, uint32_t group, const Light& light, int areaSamples,
+                                               int maxFeatureSamples) {
+    if (light.type == LightType::Directional) return {};
+    const Mesh& mesh = *object.mesh;
+    auto outOfReach = [&](const Aabb& lsBox) { return boxBeyondRange(light, lsBox) || boxOutsideCone(light, lsBox); };
+    std::vector<uint32_t> chosen;
+    vertexIndex(mesh).triangles.forEach(
+        [&](const glm::dvec3& lo, const glm::dvec3& hi) {
+            Aabb placed;
+            for (const glm::dvec3& p : placedCorners(Aabb{lo, hi}, object.lsTransform)) placed.extend(p);
+            return !outOfReach(placed);
+        },
+        [&](uint32_t t) {
+            if (mesh.triangleGroup[t] != group) return;
+            Aabb placed;
+            for (int c = 0; c < 3; ++c) placed.extend(object.lsTransform.apply(mesh.positions[mesh.triangles[t][c]]));
+            if (!outOfReach(placed)) chosen.push_back(t);
+        });
+    std::sort(chosen.begin(), chosen.end());  // mesh order: the same points whatever the tree
+    std::vector<Tri> tris;
+    tris.reserve(chosen.size());
+    for (uint32_t t : chosen)
+        if (std::optional<Tri> tri = meshTri(mesh, t)) tris.push_back(*tri);
+    return place(object, samplePoints(tris, areaSamples, maxFeatureSamples));
 }
 
 const std::vector<glm::dvec3>& GroupSampleCache::meshPoints(const Mesh& mesh, uint32_t group) {

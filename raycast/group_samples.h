@@ -30,6 +30,15 @@ std::vector<glm::dvec3> sampleMeshGroup(const Mesh& mesh, uint32_t group, int ar
 // The same points placed in the window (window-local, metres).
 std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, int areaSamples, int maxFeatureSamples);
 
+// Point and spot lights: the points sampleMeshGroup gives, on the group's triangles that
+// have a point within the light's range and cone (their placed boxes against the reach
+// tests of core/light_reach.h), placed in the window. p lies within reach (semantics.md):
+// when a range sphere cuts a large group, most of the whole group's points lie beyond it
+// and aim at nothing. Empty for a directional light or when no triangle is within reach.
+// Deterministic, as sampleMeshGroup (the triangles are taken in mesh order).
+std::vector<glm::dvec3> sampleGroupWithinReach(const WindowObject& object, uint32_t group, const Light& light, int areaSamples,
+                                               int maxFeatureSamples);
+
 // sampleMeshGroup once per (mesh, group) for a whole bake: placements of a mesh share
 // their points, and only the placement is computed per window. Keyed by the mesh's
 // address, so one cache serves one loaded space. Thread-safe.

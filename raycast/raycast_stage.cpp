@@ -435,25 +435,39 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                     // Targets in packets of 16: an occlusion packet drops those whose line is
                     // blocked before the group (most of them where a bit ends undecided), then
                     // closest hits examine the rest in order until one is a witness.
-                    const std::vector<glm::dvec3>& targets = task.targets;
-                    bool found = false;
-                    size_t lit = 0;
-                    for (size_t b = 0; b < targets.size() && !found; b += 16) {
-                        const int count = int(std::min<size_t>(16, targets.size() - b));
-                        bool clear[16];
-                        tracer.clearSegments(L, object, &targets[b], count, clear, &localRays);
-                        for (int k = 0; k < count && !found; ++k) {
-                            if (!clear[k]) continue;
-                            ++lit;
-                            if (std::optional<Witness> wit =
-                                    tracer.tryRay(L, object, uint32_t(task.group), targets[b + size_t(k)], &localRays)) {
-                                decide(d, Verdict::Kept, "raycast", why, std::move(wit));
-                                ++kept;
-                                found = true;
+                    // True when a ray through one of `points` is a witness (the bit is then
+                    // decided); `lit` counts those with a clear segment.
+                    auto searchThrough = [&](const std::vector<glm::dvec3>& points, size_t& lit) {
+                        for (size_t b = 0; b < points.size(); b += 16) {
+                            const int count = int(std::min<size_t>(16, points.size() - b));
+                            bool clear[16];
+                            tracer.clearSegments(L, object, &points[b], count, clear, &localRays);
+                            for (int k = 0; k < count; ++k) {
+                                if (!clear[k]) continue;
+                                ++lit;
+                                if (std::optional<Witness> wit =
+                                        tracer.tryRay(L, object, uint32_t(task.group), points[b + size_t(k)], &localRays)) {
+                                    decide(d, Verdict::Kept, "raycast", why, std::move(wit));
+                                    ++kept;
+                                    return true;
+                                }
                             }
                         }
+                        return false;
+                    };
+                    const std::vector<glm::dvec3>& targets = task.targets;
+                    size_t lit = 0;
+                    if (searchThrough(targets, lit)) continue;
+                    // A point or spot light whose reach cuts the group: its own points beyond
+                    // reach cannot be p. Points on the part within reach instead.
+                    std::vector<glm::dvec3> within;
+                    size_t litWithin = 0;
+                    if (ownSamples && L.type != LightType::Directional &&
+                        std::any_of(targets.begin(), targets.end(), [&](const glm::dvec3& t) { return !tracer.withinReach(L, t); })) {
+                        within = sampleGroupWithinReach(window.objects[object], uint32_t(task.group), L, im.opt.areaSamples,
+                                                        im.opt.maxFeatureSamples);
+                        if (searchThrough(within, litWithin)) continue;
                     }
-                    if (found) continue;
                     if (task.throughReceivers)
                         addNote(d, "raycast",
                                 "no witness through the receivers in its shadow either: of " + std::to_string(targets.size()) +
@@ -469,7 +483,11 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                         addNote(d, "raycast",
                                 "no witness: of " + std::to_string(targets.size()) + " points on the group, " + std::to_string(lit) +
                                     " are lit (the light's segment to them is clear), and no ray through them meets a "
-                                    "receiver more than the bias behind");
+                                    "receiver more than the bias behind" +
+                                    (within.empty() ? std::string()
+                                                    : "; nor through " + std::to_string(within.size()) +
+                                                          " points on its triangles within the light's reach (" +
+                                                          std::to_string(litWithin) + " lit)"));
                 }
                 rays += localRays;
             });

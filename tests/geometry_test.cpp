@@ -326,6 +326,19 @@ const std::vector<HardCase>& hardCases() {
              b.addModel("floor", Affine::translation({40, 0, 40}));
              return b;
          }},
+        // One group: a small face 7 m from the lamp facing it, whose shadow passes over the
+        // floor's far edge, and a patch 20 m away (beyond range) over the floor. Only the
+        // face can hold p; the patch's shadow reaches the floor, whose triangles reach into
+        // range (was undecided: every caster triangle was tested, in range or not).
+        {"point lamp: a group the range cuts, its part within range shading nothing",
+         [](auto& want) {
+             SpaceBuilder b = flatWorld(LightSpec::point("lamp", {50, 5, 50}, 10));
+             b.addMesh("parts", faceAndFarPatch());
+             b.addMesh("floor", quadFacing(0, true, 50));
+             want[b.addModel("parts", Affine::translation({50, 0, 50}))] = Verdict::Culled;
+             b.addModel("floor", Affine::translation({30, 0, 30}));
+             return b;
+         }},
         {"spot light: cube over a floor within range",
          [](auto& want) {
              SpaceBuilder b = flatWorld(LightSpec::spot("torch", {50.5, 8, 50.5}, {0, -1, 0}, 20, 30));
@@ -473,21 +486,7 @@ TEST(GeometryStage, NoProofWhenAnObjectOfTheWindowWasSkipped) {
 
 namespace {
 
-// A jagged open sheet: n x n quads of `cell` metres, heights alternating by `zig` metres
-// (a scanned surface), front faces up.
-MeshSpec jaggedSheet(int n, double cell, double zig) {
-    MeshSpec m;
-    const int g = m.addGroup(GroupSpec{});
-    for (int j = 0; j <= n; ++j)
-        for (int i = 0; i <= n; ++i) m.addVertex({i * cell, ((i + j) % 2) * zig, j * cell});
-    for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) {
-            const int a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
-            m.addTriangle(a, c, b, g);
-            m.addTriangle(b, c, d, g);
-        }
-    return m;
-}
+MeshSpec jaggedSheet(int n, double cell, double zig) { return MeshSpec::jaggedSheet(n, cell, zig); }
 
 }  // namespace
 
@@ -588,6 +587,25 @@ TEST(GeometryStage, FastPathEqualsTheExhaustiveReference) {
              b.addModel("sheet", Affine::rotationY(71).then(Affine::translation({46, 0.0, 44})));
              b.addModel("sheet", Affine::translation({54, 0.48, 46}));
          }},
+        // Tilted across the ground (a rock's ground line): the terrain's columns reach the
+        // buried side, the part above lies in front of them.
+        {"tilted sheets crossing a terrain", [](SpaceBuilder& b) {
+             b.addFlatTerrain(0, 0, 0.2);
+             Affine tilt;  // about x by ~25 degrees, centred on the ground
+             tilt.row1 = {0, 0.906, 0.423};
+             tilt.row2 = {0, -0.423, 0.906};
+             tilt.row3 = {50, 0.3, 49.9};
+             b.addModel("sheet", tilt);
+             b.addModel("sheet", Affine::rotationY(40).then(tilt).then(Affine::translation({-3, 0.05, 2})));
+         }},
+        // The lamp's range (5 m from (50.1, 1, 50.1)) cuts these sheets: only their
+        // triangles within it may hold p.
+        {"sheets the lamp's range cuts, over a floor", [](SpaceBuilder& b) {
+             b.addMesh("floor", quadFacing(0, true, 20));
+             b.addModel("floor", Affine::translation({40, 0, 40}));
+             b.addModel("sheet", Affine::translation({54.7, 0.3, 50}));
+             b.addModel("sheet", Affine::rotationY(90).then(Affine::translation({50, 1.5, 45.3})));
+         }},
     };
     std::vector<LightSpec> lights = {LightSpec::directional("sun", {0.3, -1, 0.2}), LightSpec::directional("steep", {0.9, -1, 0.1}),
                                      LightSpec::point("lamp", {50.1, 1.0, 50.1}, 5.0)};
@@ -602,35 +620,43 @@ TEST(GeometryStage, FastPathEqualsTheExhaustiveReference) {
         sc.add(b);
         const fs::path dir = freshTestDir("-" + std::to_string(&sc - scenes.data()));
         b.write((dir / "space").string());
+        // The reference first, then the fast path as baked and with the terrain rule's node
+        // tests on every mesh (by default only on meshes of 1,024 triangles and more).
         std::vector<cli::BakeResult> results;
-        for (bool exhaustive : {false, true}) {
+        for (int run = 0; run < 3; ++run) {
             cli::BakeOptions opt;
             opt.spaceDir = (dir / "space").string();
             opt.write = false;
             opt.useRaycast = false;  // every bit goes to the geometry stage
             opt.useGpu = false;
-            opt.geometry.exhaustive = exhaustive;
+            opt.geometry.exhaustive = run == 0;
+            if (run == 2) opt.geometry.nodeTerrainRuleFrom = 0;
             Expected<cli::BakeResult> r = cli::runBake(opt);
             ASSERT_TRUE(r) << r.error().what();
             results.push_back(std::move(*r));
         }
         size_t bits = 0, proved = 0, undecided = 0;
-        ASSERT_EQ(results[0].chunks.size(), results[1].chunks.size());
-        for (size_t c = 0; c < results[0].chunks.size(); ++c) {
-            const auto& fast = results[0].chunks[c];
-            const auto& ref = results[1].chunks[c];
-            ASSERT_EQ(fast.objects.size(), ref.objects.size());
-            for (size_t o = 0; o < fast.objects.size(); ++o)
-                for (int g = 0; g < fast.objects[o].groupCount; ++g)
-                    for (int l = 0; l < fast.lightCount; ++l) {
-                        ++bits;
-                        const Decision& a = fast.at(o, g, l);
-                        const Decision& e = ref.at(o, g, l);
-                        proved += e.verdict == Verdict::Culled && e.stage == std::string("geometry");
-                        undecided += e.verdict == Verdict::Undecided;
-                        EXPECT_EQ(a.verdict, e.verdict) << "chunk " << c << " object " << o << " light " << l + 1;
-                        EXPECT_EQ(std::string(a.stage), std::string(e.stage));
-                    }
+        for (size_t run = 1; run < results.size(); ++run) {
+            SCOPED_TRACE(run == 1 ? "fast path" : "fast path, node rules on every mesh");
+            ASSERT_EQ(results[run].chunks.size(), results[0].chunks.size());
+            for (size_t c = 0; c < results[0].chunks.size(); ++c) {
+                const auto& fast = results[run].chunks[c];
+                const auto& ref = results[0].chunks[c];
+                ASSERT_EQ(fast.objects.size(), ref.objects.size());
+                for (size_t o = 0; o < fast.objects.size(); ++o)
+                    for (int g = 0; g < fast.objects[o].groupCount; ++g)
+                        for (int l = 0; l < fast.lightCount; ++l) {
+                            const Decision& a = fast.at(o, g, l);
+                            const Decision& e = ref.at(o, g, l);
+                            if (run == 1) {
+                                ++bits;
+                                proved += e.verdict == Verdict::Culled && e.stage == std::string("geometry");
+                                undecided += e.verdict == Verdict::Undecided;
+                            }
+                            EXPECT_EQ(a.verdict, e.verdict) << "chunk " << c << " object " << o << " light " << l + 1;
+                            EXPECT_EQ(std::string(a.stage), std::string(e.stage));
+                        }
+            }
         }
         EXPECT_GT(bits, 0u);
         std::printf("%s: %zu bits, %zu proved 0 by the geometry stage, %zu left undecided\n", sc.name, bits, proved, undecided);

@@ -446,6 +446,28 @@ TEST(GpuConfirm, ProvesNeverLitForPointAndSpotLights) {
     }
 }
 
+// A lamp (range 10 m, bias 5 cm) and one group in two parts: a face 7 m away turned to the
+// lamp, whose shadow passes over the far edge of a floor, and a patch 20 m away (beyond
+// range) over the floor. Only the face can hold p; the patch's pixels passed (the floor's
+// triangles reach into range) until the casters were limited to their triangles within
+// reach. (The geometry stage proves the same bit at any bias: GeometryStage.HardCases.)
+TEST(GpuConfirm, CasterTrianglesBeyondRangeAreNotDrawn) {
+    REQUIRE_GL();
+    SpaceBuilder b;
+    b.addLight(LightSpec::point("lamp", {50, 5, 50}, 10).withBias(0.05));
+    b.addMesh("parts", faceAndFarPatch());
+    b.addMesh("floor", MeshSpec::quad({0, 0, 0}, {0, 0, 50}, {50, 0, 50}, {50, 0, 0}));
+    b.addModel("parts", Affine::translation({50, 0, 50}), fixedUuid(1));
+    b.addModel("floor", Affine::translation({30, 0, 30}), fixedUuid(2));
+    std::unique_ptr<Loaded> l = load(b);
+    ASSERT_TRUE(l);
+    gpu::GpuConfirmStage stage({1024});
+    runStage(stage, *l);
+    const Decision& d = l->at(fixedUuid(1), 0, 0);
+    EXPECT_EQ(d.verdict, Verdict::Culled) << (d.notes().empty() ? "" : d.notes()[0].text);
+    EXPECT_EQ(d.stage, "gpu");
+}
+
 TEST(GpuConfirm, AlphaTestedRoofLetsLightThrough) {
     REQUIRE_GL();
     std::unique_ptr<Loaded> l = load(hiddenUnderRoof(true));

@@ -4,8 +4,10 @@
 
 #include <glm/geometric.hpp>
 
+#include "cli/pipeline.h"
 #include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
+#include "tests/support/bake_lookup.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 
@@ -133,4 +135,88 @@ TEST(EmbreeScenes, PrototypesFollowTheWindow) {
         EXPECT_EQ(scenes.prototypeCount(), meshesOf(middle));  // 9 terrains (4 kept from the last) and the cube
     }
     rtcReleaseDevice(device);
+}
+
+// --- Points within a point light's reach (issue 13) -----------------------------------------
+
+namespace {
+
+using shadowcull::testing::Affine;
+using shadowcull::testing::GroupSpec;
+using shadowcull::testing::LightSpec;
+using shadowcull::testing::MeshSpec;
+using shadowcull::testing::SpaceBuilder;
+
+// An 80 m sheet of 3,200 triangles 2 m up, a floor 0.5 m under it, and a lamp of range 4 m
+// over the sheet's far corner: the sheet's own points (by area over 6,400 m², and the
+// vertices of its first triangles) miss the 30 m² the lamp reaches.
+SpaceBuilder sheetUnderASmallLamp() {
+    SpaceBuilder b;
+    b.addLight(LightSpec::point("lamp", {86, 4, 86}, 4));
+    b.addMesh("sheet", MeshSpec::jaggedSheet(40, 2.0, 0.0));
+    b.addMesh("floor", MeshSpec::quad({0, 0, 0}, {0, 0, 100}, {100, 0, 100}, {100, 0, 0}));
+    b.addModel("floor", Affine::translation({0, 1.5, 0}));
+    return b;
+}
+
+}  // namespace
+
+TEST(GroupSamples, PointsWithinReachLieOnTheTrianglesTheLightReaches) {
+    Mesh m;
+    const MeshSpec spec = MeshSpec::jaggedSheet(40, 2.0, 0.0);
+    for (const glm::dvec3& p : spec.positions) m.positions.push_back(p);
+    for (const auto& t : spec.triangles) m.triangles.push_back({{uint32_t(t[0]), uint32_t(t[1]), uint32_t(t[2])}});
+    m.triangleGroup.assign(m.triangles.size(), 0);
+    m.groups = {PrimitiveGroup{}};
+    WindowObject o;
+    o.mesh = &m;
+    o.lsTransform.rows[3] = glm::dvec3(10, 2, 10);
+    Light lamp;
+    lamp.type = LightType::Point;
+    lamp.position = {86, 4, 86};
+    lamp.range = 4;
+    const auto own = raycast::sampleGroup(o, 0, 256, 1024);
+    const auto within = raycast::sampleGroupWithinReach(o, 0, lamp, 256, 1024);
+    size_t ownWithin = 0;
+    for (const glm::dvec3& p : own) ownWithin += glm::length(p - lamp.position) <= lamp.range;
+    EXPECT_LE(ownWithin, 2u);  // what the whole group's points give
+    ASSERT_GT(within.size(), 256u);  // by area, then 6 features per reached triangle (32 here)
+    EXPECT_EQ((within.size() - 256) % 6, 0u);
+    size_t inRange = 0;
+    for (const glm::dvec3& p : within) {
+        EXPECT_TRUE(onTriangleOfGroup(o, 0, p));
+        // On a reached triangle: at most a cell's diagonal beyond the range.
+        EXPECT_LE(glm::length(p - lamp.position), lamp.range + 2 * std::sqrt(2.0) + 1e-9);
+        inRange += glm::length(p - lamp.position) <= lamp.range;
+    }
+    EXPECT_GT(inRange, within.size() / 3);
+    EXPECT_EQ(within, raycast::sampleGroupWithinReach(o, 0, lamp, 256, 1024));  // deterministic
+    // Nothing for a directional light, nor beyond the range.
+    Light sun;
+    EXPECT_TRUE(raycast::sampleGroupWithinReach(o, 0, sun, 256, 1024).empty());
+    lamp.position = {200, 4, 200};
+    EXPECT_TRUE(raycast::sampleGroupWithinReach(o, 0, lamp, 256, 1024).empty());
+}
+
+// Through the pipeline, the group's own witness rays alone: the sheet shades the floor
+// under the lamp, a witness only points within the lamp's reach find (before, the bit was
+// left to the receiver-side search and the next stages).
+TEST(GroupSamples, AWitnessWithinAPointLightsReachIsFound) {
+    SpaceBuilder b = sheetUnderASmallLamp();
+    const std::string sheet = b.addModel("sheet", Affine::translation({10, 2, 10}));
+    const std::filesystem::path dir = shadowcull::testing::freshTestDir();
+    b.write((dir / "space").string());
+    cli::BakeOptions opt;
+    opt.spaceDir = (dir / "space").string();
+    opt.write = false;
+    opt.useGeometry = false;
+    opt.useGpu = false;
+    opt.raycast.receiverSamples = 0;  // the group's own points alone (the floor's would find it too)
+    Expected<cli::BakeResult> r = cli::runBake(opt);
+    ASSERT_TRUE(r) << r.error().what();
+    const Decision* d = shadowcull::testing::findDecision(*r, b.locateObjects().at(sheet), 0, 0);
+    ASSERT_NE(d, nullptr);
+    EXPECT_EQ(d->verdict, Verdict::Kept);
+    ASSERT_NE(d->witness(), nullptr);
+    EXPECT_LE(glm::length(d->witness()->wsP - glm::dvec3(86, 4, 86)), 4.0);
 }

@@ -367,6 +367,26 @@ MeshSpec MeshSpec::edgeSharingCubes(double size, const GroupSpec& g) {
     return m.welded();
 }
 
+MeshSpec MeshSpec::jaggedSheet(int n, double cell, double zig, const GroupSpec& g) {
+    MeshSpec m;
+    const int group = m.addGroup(g);
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) m.addVertex({i * cell, ((i + j) % 2) * zig, j * cell});
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const int a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+            m.addTriangle(a, c, b, group);
+            m.addTriangle(b, c, d, group);
+        }
+    return m;
+}
+
+void MeshSpec::addQuad(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, const glm::dvec3& d, int group) {
+    const int ia = addVertex(a), ib = addVertex(b), ic = addVertex(c), id = addVertex(d);
+    addTriangle(ia, ib, ic, group);
+    addTriangle(ia, ic, id, group);
+}
+
 // =======================================================================================
 // Lights
 
@@ -873,6 +893,14 @@ SpaceBuilder manyChunks(int n) {
             }
         }
     return b;
+}
+
+MeshSpec faceAndFarPatch() {
+    MeshSpec parts;
+    const int g = parts.addGroup(GroupSpec{});
+    parts.addQuad({7, 4, -0.5}, {7, 4, 0.5}, {7, 4.9, 0.5}, {7, 4.9, -0.5}, g);  // faces -x, the lamp
+    parts.addQuad({20, 1, 0}, {20, 1, 1}, {21, 1, 1}, {21, 1, 0}, g);              // faces up
+    return parts;
 }
 
 SpaceBuilder cubeBesideLamp(double range) {

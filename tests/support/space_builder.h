@@ -153,6 +153,11 @@ struct MeshSpec {
     // Two closed cubes of side `size` welded along one edge (x = y = size): a non-manifold
     // edge with four faces.
     static MeshSpec edgeSharingCubes(double size, const GroupSpec& g = {});
+    // An open sheet of n x n quads of `cell` metres over x, z in [0, n cell], heights
+    // alternating between 0 and `zig` metres (a scanned surface; 0: flat), fronts up.
+    static MeshSpec jaggedSheet(int n, double cell, double zig, const GroupSpec& g = {});
+    // Adds the quad a-b-c-d (two triangles, front where the corners run counter-clockwise).
+    void addQuad(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c, const glm::dvec3& d, int group);
 };
 
 // ---------------------------------------------------------------------------------------
@@ -358,5 +363,10 @@ SpaceBuilder hiddenUnderRoof(bool roofAlphaTested);
 // at (20,5,20) with the given range: from range 10 on its shadow lands on the terrain (a
 // witness); with range 5 (the cube is >= 7.2 m away) it is out of reach. No expectations.
 SpaceBuilder cubeBesideLamp(double range);
+
+// One group in two parts, in mesh coordinates around a lamp at (0, 5, 0) of range 10: a
+// 1 m face 7 m away along +x turned to the lamp, and a 1 m patch 20 m away (beyond range)
+// facing up (issue 13: a group the range sphere cuts).
+MeshSpec faceAndFarPatch();
 
 }  // namespace shadowcull::testing
