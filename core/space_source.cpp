@@ -3,6 +3,7 @@
 #include "core/space_source.h"
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <limits>
 #include <set>
@@ -114,9 +115,11 @@ Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>&
             // one by one below).
             ResourceSummary s;
             if (model) {
+                const fs::file_time_type parseStart = fs::file_time_type::clock::now();
                 Expected<Mesh> m = loadModelResource(full);
                 if (m) mesh = std::make_shared<const Mesh>(std::move(*m)), s = summarize(*mesh);
                 else diagnostics.push_back({m.error().file, m.error().line, m.error().message + "; every object using it is skipped"});
+                if (mesh && !attach) park(key, mesh, parseStart);
             } else {
                 Expected<Heightfield> t = loadTerrainResource(full, settings_.chunkSize);
                 if (t) terrain = std::make_shared<const Heightfield>(std::move(*t)), s = summarize(*terrain);
@@ -144,6 +147,8 @@ Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>&
         // Attach what a loaded chunk holds, or load it again: it must be what the scan read.
         if (model) {
             auto live = liveMeshes_.find(key);
+            if (live == liveMeshes_.end())
+                if (std::shared_ptr<const Mesh> parked = unpark(key)) live = liveMeshes_.emplace(key, std::move(parked)).first;
             if (live == liveMeshes_.end()) {
                 Expected<Mesh> m = loadModelResource(full);
                 if (!m || contentHash(*m) != s.contentHash)
@@ -163,6 +168,39 @@ Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>&
         }
     }
     return Status::ok();
+}
+
+void SpaceSource::park(const std::string& key, std::shared_ptr<const Mesh> mesh, fs::file_time_type parseStart) {
+    const size_t bytes = mesh->positions.size() * sizeof(glm::dvec3) +
+                         mesh->triangles.size() * (sizeof(mesh->triangles[0]) + sizeof(mesh->triangleGroup[0]));
+    if (parkedBytes_ + bytes > kParkBudget) return;
+    Parked p{std::move(mesh), {}, bytes};
+    for (const std::string& file : p.mesh->sourceFiles) {
+        std::error_code ec;
+        FileStamp st{file, fs::file_size(file, ec), {}};
+        if (!ec) st.time = fs::last_write_time(file, ec);
+        // A file written around the parse may hold other bytes than were read.
+        if (ec || st.time > parseStart - std::chrono::seconds(2)) return;
+        p.stamps.push_back(std::move(st));
+    }
+    parkedBytes_ += bytes;
+    parked_.emplace(key, std::move(p));
+}
+
+std::shared_ptr<const Mesh> SpaceSource::unpark(const std::string& key) {
+    auto it = parked_.find(key);
+    if (it == parked_.end()) return nullptr;
+    Parked p = std::move(it->second);
+    parked_.erase(it);
+    parkedBytes_ -= p.bytes;
+    for (const FileStamp& st : p.stamps) {
+        std::error_code ec;
+        const uintmax_t size = fs::file_size(st.path, ec);
+        if (ec || size != st.size) return nullptr;
+        const fs::file_time_type time = fs::last_write_time(st.path, ec);
+        if (ec || time != st.time) return nullptr;
+    }
+    return std::move(p.mesh);
 }
 
 Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::string& resourceRootOverride,
