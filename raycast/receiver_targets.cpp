@@ -3,6 +3,7 @@
 
 #include "raycast/receiver_targets.h"
 
+#include "core/light_reach.h"
 #include "core/mesh_index.h"
 
 #include <algorithm>
@@ -182,6 +183,7 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
         nearest = std::max(0.0, nearest - longestEdge);
     }
     const double deeper = nearest + L.bias;  // a receiver point shallower than this cannot be q
+    const bool local = L.type != LightType::Directional;
     const double tol = w.terrainTolerance;
 
     // The receivers, each with a weight: the square root of its projected area (of its
@@ -208,9 +210,14 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
     weights.clear();
     bandWeights.clear();
     band.clear();
+    // q lies within a point or spot light's reach (semantics.md): receivers, terrain
+    // triangles and band nodes wholly beyond it get no target (world D: the lamp's bits aimed
+    // at the ground lines of dense rocks 40-90 m away).
+    auto outOfReach = [&](const Aabb& box) { return boxBeyondRange(L, box) || boxOutsideCone(L, box); };
     for (uint32_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
         const bool terrain = o.kind == ChunkObject::Kind::Terrain;
+        if (outOfReach(o.lsBounds)) continue;
         const auto oc = o.lsBounds.corners();
         double oDeep = -std::numeric_limits<double>::infinity();
         for (const glm::dvec3& p : oc) oDeep = std::max(oDeep, frame.depth(p));
@@ -224,6 +231,11 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
             for (size_t t = 0; t < m.triangles.size(); ++t) {
                 const std::array<glm::dvec3, 3> tri = o.lsTriangle(t);
                 if (!(std::max({frame.depth(tri[0]), frame.depth(tri[1]), frame.depth(tri[2])}) > deeper)) continue;
+                if (local) {
+                    Aabb tb;
+                    for (const glm::dvec3& c : tri) tb.extend(c);
+                    if (outOfReach(tb)) continue;
+                }
                 if (!fp.meets(footprintOf(frame, tri, 0.0))) continue;
                 const glm::dvec3 n = glm::cross(tri[1] - tri[0], tri[2] - tri[0]) * (o.flipsWinding ? -1.0 : 1.0);
                 const double a2 = glm::length(n);
@@ -291,6 +303,7 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
                     pLo[a] = -placedCoordinateUpper(o.lsTransform, a, -1.0, lo, hi);
                 }
                 if (pHi.y < bottom || pLo.y > highest) return false;  // every vertex on one side
+                if (local && outOfReach(Aabb{pLo, pHi})) return false;
                 if (pHi.y - pLo.y > 0.25 * (highest - bottom)) return true;  // large: its children will tell
                 // The ground under the node alone: its vertices are all above it (no
                 // terrain counts as above), or all under it less the level. Margins: the

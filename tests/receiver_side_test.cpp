@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <glm/geometric.hpp>
+
 #include "cli/pipeline.h"
 #include "core/window.h"
 #include "raycast/receiver_targets.h"
@@ -223,4 +225,33 @@ TEST(ReceiverSide, WitnessAFractionOfAMillimetreInsideTheBandIsFound) {
     EXPECT_EQ(d->verdict, Verdict::Kept) << d->stage << ": " << d->reason();
     ASSERT_NE(d->witness(), nullptr);
     EXPECT_NEAR(d->witness()->wsQ.y, -0.0098, 1e-6);
+}
+
+// A point light's targets lie on what it reaches: q is within range (semantics.md), so a
+// receiver wholly beyond it gets none (world D: the lamp's terrain bits aimed at dense rocks
+// 40-90 m away, a fifth of the raycast stage). A lamp of range 12 m 10 m over flat ground,
+// cubes near it and beyond its range.
+TEST(ReceiverSide, APointLightsTargetsLieWithinItsReach) {
+    SpaceBuilder b;
+    b.addLight(LightSpec::point("lamp", {50, 10, 50}, 12));
+    b.addFlatTerrain(0, 0, 0.0, 51);  // cells of 2 m
+    b.addMesh("cube", MeshSpec::box({-0.5, -0.5, -0.5}, {0.5, 0.5, 0.5}));
+    for (int k = 0; k < 8; ++k) {
+        const double a = k * 0.785398, r = k % 2 ? 5.0 : 30.0;  // near, and beyond range
+        b.addModel("cube", Affine::translation({50 + r * std::cos(a), 0.2, 50 + r * std::sin(a)}));
+    }
+    const fs::path dir = freshTestDir() / "space";
+    b.write(dir.string());
+    const Loaded l(dir);
+    const BakeWindow& w = l.window;
+    raycast::GroupSampleCache samples(256, 1024);
+    const auto targets = raycast::receiverTargets(w, uint32_t(w.terrainObjects[0]), 0, w.lsLights[0], 1000, samples);
+    ASSERT_GT(targets.size(), 100u);
+    size_t onNearCubes = 0;
+    for (const glm::dvec3& p : targets) {
+        // Every target within range, give or take a terrain cell's diagonal.
+        EXPECT_LT(glm::distance(p, w.lsLights[0].position), 12.0 + 3.0) << p.x << " " << p.y << " " << p.z;
+        onNearCubes += p.y > 0.01;
+    }
+    EXPECT_GT(onNearCubes, 0u);
 }
