@@ -61,7 +61,7 @@
 #include "core/float_mode.h"
 #include "core/format.h"
 #include "core/light_reach.h"
-#include "gpu/confirm_shaders.h"
+#include "gpu/confirm_gl.h"
 #include "gpu/confirm_surfaces.h"
 #include "gpu/conservative.h"
 #include "gpu/gl_api.h"
@@ -112,17 +112,6 @@ struct ObjectPieces {
 
 }  // namespace
 
-struct GpuConfirmStage::Gl {
-    std::unique_ptr<GlSession> session;
-    GLuint raster = 0, resolve = 0, clear = 0;
-    RenderTarget work, occ, recv;
-    GLuint vao = 0, vbo = 0, rectVao = 0, rectVbo = 0;
-    GLuint ssbo[4] = {0, 0, 0, 0};  // counts, records, slots, passed pieces (see kConfirmRasterFs)
-    size_t vboPieces = 0;  // the piece buffer's size: it only grows (reallocating faulted it in anew per view)
-    std::vector<RasterPiece> all;  // a view's pieces, kept for its capacity likewise
-    GLint64 maxStorageBlock = 0;  // bytes, GL_MAX_SHADER_STORAGE_BLOCK_SIZE
-};
-
 // Per run: the stage's trees and edges per mesh.
 struct GpuConfirmStage::LightWork {
     std::unordered_map<const Mesh*, std::unique_ptr<MeshTree>>& trees;
@@ -147,68 +136,6 @@ void GpuConfirmStage::forgetMeshes(const std::unordered_set<const Mesh*>& meshes
 }
 
 std::string GpuConfirmStage::glDescription() const { return gl_ ? gl_->session->context->report() : std::string(); }
-
-Status GpuConfirmStage::ensureGl() {
-    if (gl_) return gl_->session->makeCurrent();
-    const int res = options_.resolution;
-    if (res < 1) return makeError(ErrorKind::BadInput, "", 0, "GPU resolution must be at least 1");
-    auto g = std::make_unique<Gl>();
-    Expected<std::unique_ptr<GlSession>> s = openGlSession();
-    if (!s) return s.error();
-    g->session = std::move(*s);
-    const GlApi& gl = g->session->gl;
-    Expected<GLuint> raster = gl.program(kConfirmRasterVs, nullptr, kConfirmRasterFs);
-    if (!raster) return raster.error();
-    g->raster = *raster;
-    Expected<GLuint> resolve = gl.program(kConfirmRectVs, nullptr, kConfirmResolveFs);
-    if (!resolve) return resolve.error();
-    g->resolve = *resolve;
-    Expected<GLuint> clear = gl.program(kConfirmRectVs, nullptr, kConfirmClearFs);
-    if (!clear) return clear.error();
-    g->clear = *clear;
-    Expected<RenderTarget> work = makeRenderTarget(gl, res, res, {GL_RG32F}, false);
-    if (!work) return work.error();
-    g->work = *work;
-    Expected<RenderTarget> occ = makeRenderTarget(gl, res, res, {GL_R32F}, false);
-    if (!occ) return occ.error();
-    g->occ = *occ;
-    Expected<RenderTarget> recv = makeRenderTarget(gl, res, res, {GL_R32F}, false);
-    if (!recv) return recv.error();
-    g->recv = *recv;
-    gl.GenVertexArrays(1, &g->vao);
-    gl.GenVertexArrays(1, &g->rectVao);
-    gl.GenBuffers(1, &g->rectVbo);
-    gl.BindVertexArray(g->rectVao);
-    gl.BindBuffer(GL_ARRAY_BUFFER, g->rectVbo);
-    gl.EnableVertexAttribArray(0);
-    gl.VertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 2 * sizeof(float), nullptr);
-    gl.GenBuffers(1, &g->vbo);
-    gl.BindVertexArray(g->vao);
-    gl.BindBuffer(GL_ARRAY_BUFFER, g->vbo);
-    const GLsizei stride = sizeof(RasterPiece);
-    for (GLuint k = 0; k < 7; ++k) {
-        gl.EnableVertexAttribArray(k);
-        gl.VertexAttribPointer(k, 4, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(size_t(16 * k)));
-        gl.VertexAttribDivisor(k, 1);
-    }
-    gl.EnableVertexAttribArray(7);
-    gl.VertexAttribIPointer(7, 1, GL_UNSIGNED_INT, stride, reinterpret_cast<const void*>(offsetof(RasterPiece, id)));
-    gl.VertexAttribDivisor(7, 1);
-    for (GLuint k = 8; k < 10; ++k) {
-        gl.EnableVertexAttribArray(k);
-        gl.VertexAttribPointer(k, 4, GL_FLOAT, GL_FALSE, stride,
-                               reinterpret_cast<const void*>(offsetof(RasterPiece, cover) + 16 * (k - 8)));
-        gl.VertexAttribDivisor(k, 1);
-    }
-    gl.BindVertexArray(0);
-    gl.GenBuffers(4, g->ssbo);
-    GLint maxBlock = 0;
-    gl.GetIntegerv(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &maxBlock);
-    g->maxStorageBlock = maxBlock > 0 ? maxBlock : (16 << 20);
-    if (Status st = gl.check("setting up the confirmation passes"); !st) return st;
-    gl_ = std::move(g);
-    return Status::ok();
-}
 
 Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();
