@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <optional>
 
 #include <glm/geometric.hpp>
 
@@ -26,13 +25,21 @@ struct Tri {
     glm::dvec3 a, b, c;
 };
 
-// The points of sampleMeshGroup on `tris` (mesh coordinates, in mesh order), whatever
-// chose them.
-std::vector<glm::dvec3> samplePoints(const std::vector<Tri>& tris, int areaSamples, int maxFeatureSamples) {
+Tri triOf(const Mesh& mesh, uint32_t t) {
+    const auto& i = mesh.triangles[t];
+    return Tri{mesh.positions[i[0]], mesh.positions[i[1]], mesh.positions[i[2]]};
+}
+
+// The points of sampleMeshGroup on the mesh's triangles `tris` (indices, in mesh order,
+// none repeating a vertex), whatever chose them. Indices, not copies: a dense group's
+// triangles copied were 72 bytes each (13 MB for a 180,000-triangle rock).
+std::vector<glm::dvec3> samplePoints(const Mesh& mesh, const std::vector<uint32_t>& tris, int areaSamples,
+                                     int maxFeatureSamples) {
     std::vector<double> cumulative;  // cumulative area
     cumulative.reserve(tris.size());
     double total = 0.0;
-    for (const Tri& tri : tris) {
+    for (uint32_t i : tris) {
+        const Tri tri = triOf(mesh, i);
         total += 0.5 * glm::length(glm::cross(tri.b - tri.a, tri.c - tri.a));
         cumulative.push_back(total);
     }
@@ -55,15 +62,16 @@ std::vector<glm::dvec3> samplePoints(const std::vector<Tri>& tris, int areaSampl
             const double g = double(s) * 0.6180339887498949 + 0.5;
             const double v2 = g - std::floor(g);
             const double r = std::sqrt(v1);
-            const Tri& t = tris[k];
+            const Tri t = triOf(mesh, tris[k]);
             out.push_back((1 - r) * t.a + r * (1 - v2) * t.b + r * v2 * t.c);
         }
     }
     // Features: vertices and edge midpoints, nudged into the triangle.
     constexpr double e = 1e-3;
     int features = 0;
-    for (const Tri& t : tris) {
+    for (uint32_t i : tris) {
         if (features >= maxFeatureSamples) break;
+        const Tri t = triOf(mesh, i);
         const glm::dvec3 pts[6] = {
             (1 - 2 * e) * t.a + e * t.b + e * t.c,
             e * t.a + (1 - 2 * e) * t.b + e * t.c,
@@ -80,23 +88,19 @@ std::vector<glm::dvec3> samplePoints(const std::vector<Tri>& tris, int areaSampl
     return out;
 }
 
-// Triangle `t` of the mesh, or nothing when it repeats a vertex (no area, no samples).
-std::optional<Tri> meshTri(const Mesh& mesh, size_t t) {
+// Triangle `t` of the mesh has three distinct vertices (else no area, no samples).
+bool sampled(const Mesh& mesh, uint32_t t) {
     const auto& i = mesh.triangles[t];
-    const glm::dvec3 &a = mesh.positions[i[0]], &b = mesh.positions[i[1]], &c = mesh.positions[i[2]];
-    if (hasRepeatedVertex(a, b, c)) return std::nullopt;
-    return Tri{a, b, c};
+    return !hasRepeatedVertex(mesh.positions[i[0]], mesh.positions[i[1]], mesh.positions[i[2]]);
 }
 
 }  // namespace
 
 std::vector<glm::dvec3> sampleMeshGroup(const Mesh& mesh, uint32_t group, int areaSamples, int maxFeatureSamples) {
-    std::vector<Tri> tris;
-    tris.reserve(mesh.triangles.size());
-    for (size_t t = 0; t < mesh.triangles.size(); ++t)
-        if (mesh.triangleGroup[t] == group)
-            if (std::optional<Tri> tri = meshTri(mesh, t)) tris.push_back(*tri);
-    return samplePoints(tris, areaSamples, maxFeatureSamples);
+    std::vector<uint32_t> tris;
+    for (uint32_t t = 0; t < mesh.triangles.size(); ++t)
+        if (mesh.triangleGroup[t] == group && sampled(mesh, t)) tris.push_back(t);
+    return samplePoints(mesh, tris, areaSamples, maxFeatureSamples);
 }
 
 namespace {
@@ -131,11 +135,8 @@ std::vector<glm::dvec3> sampleGroupWithinReach(const WindowObject& object, uint3
             if (!outOfReach(placed)) chosen.push_back(t);
         });
     std::sort(chosen.begin(), chosen.end());  // mesh order: the same points whatever the tree
-    std::vector<Tri> tris;
-    tris.reserve(chosen.size());
-    for (uint32_t t : chosen)
-        if (std::optional<Tri> tri = meshTri(mesh, t)) tris.push_back(*tri);
-    return place(object, samplePoints(tris, areaSamples, maxFeatureSamples));
+    chosen.erase(std::remove_if(chosen.begin(), chosen.end(), [&](uint32_t t) { return !sampled(mesh, t); }), chosen.end());
+    return place(object, samplePoints(mesh, chosen, areaSamples, maxFeatureSamples));
 }
 
 const std::vector<glm::dvec3>& GroupSampleCache::meshPoints(const Mesh& mesh, uint32_t group) {
