@@ -278,6 +278,15 @@ TEST(MeshObj, LineContinuationCommentsAndCrLf) {
     EXPECT_EQ(ok->positions[1], glm::dvec3(1, 0, 0));
     ASSERT_EQ(ok->triangles.size(), 1u);
     EXPECT_EQ(ok->triangles[0], (std::array<uint32_t, 3>{0, 1, 2}));
+
+    // Statements are views into the text, or into one buffer for continued ones: two
+    // continued statements in a row, and a file ending on a backslash, each read whole.
+    auto twice = loadText("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 \\\n2 3\nf 3 \\\n2 \\\n1 # one\nf 1 2 \\\n3 \\");
+    ASSERT_TRUE(twice) << twice.error().what();
+    ASSERT_EQ(twice->triangles.size(), 3u);
+    EXPECT_EQ(twice->triangles[0], (std::array<uint32_t, 3>{0, 1, 2}));
+    EXPECT_EQ(twice->triangles[1], (std::array<uint32_t, 3>{2, 1, 0}));
+    EXPECT_EQ(twice->triangles[2], (std::array<uint32_t, 3>{0, 1, 2}));
 }
 
 TEST(MeshObj, MaterialNamesMayContainSpaces) {
