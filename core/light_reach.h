@@ -40,4 +40,8 @@ inline bool boxOutsideCone(const Light& L, const Aabb& b) {
     return angle - halfSpan > cone + 1e-7;
 }
 
+// Point and spot lights: no point of the box is within the light's reach (range and cone),
+// so it holds no p and no q (semantics.md, condition 3).
+inline bool boxOutOfReach(const Light& L, const Aabb& b) { return boxBeyondRange(L, b) || boxOutsideCone(L, b); }
+
 }  // namespace shadowcull

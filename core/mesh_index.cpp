@@ -36,9 +36,6 @@ void MeshTree::build(const Box& box) {
         box(i, lo, hi);
         centre[i] = 0.5 * (lo + hi);
     }
-    // Top down: the splits, by the items' centres. A leaf's box from its items; an inner
-    // node's, after, as the union of its children's (the same min and max, exactly, without
-    // going over every item at every level).
     while (!todo.empty()) {
         const int32_t ni = todo.back();
         todo.pop_back();
@@ -46,13 +43,12 @@ void MeshTree::build(const Box& box) {
         n.lo = glm::dvec3(std::numeric_limits<double>::infinity());
         n.hi = glm::dvec3(-std::numeric_limits<double>::infinity());
         glm::dvec3 clo = n.lo, chi = n.hi;
-        const bool leaf = n.end - n.begin <= kLeafSize;
         for (uint32_t k = n.begin; k < n.end; ++k) {
-            if (leaf) box(order_[k], n.lo, n.hi);
+            box(order_[k], n.lo, n.hi);
             clo = glm::min(clo, centre[order_[k]]);
             chi = glm::max(chi, centre[order_[k]]);
         }
-        if (!leaf) {
+        if (n.end - n.begin > kLeafSize) {
             const glm::dvec3 side = chi - clo;
             const int axis = side.x >= side.y && side.x >= side.z ? 0 : side.y >= side.z ? 1 : 2;
             const uint32_t mid = n.begin + (n.end - n.begin) / 2;
@@ -66,14 +62,6 @@ void MeshTree::build(const Box& box) {
             todo.push_back(n.right);
         }
         nodes_[size_t(ni)] = n;
-    }
-    // Children come after their parent.
-    for (size_t k = nodes_.size(); k-- > 0;) {
-        Node& n = nodes_[k];
-        if (n.left < 0) continue;
-        const Node &a = nodes_[size_t(n.left)], &b = nodes_[size_t(n.right)];
-        n.lo = glm::min(a.lo, b.lo);
-        n.hi = glm::max(a.hi, b.hi);
     }
 }
 

@@ -28,22 +28,21 @@ BoxTree::BoxTree(const std::vector<Aabb>& boxes) {
     struct Builder {
         BoxTree& t;
         std::atomic<uint32_t>& used;
-        // A leaf's box is its items'; an inner node's is set after (the union of its
-        // children's: the same box, without going over every item at every level).
         void build(uint32_t node, uint32_t first, uint32_t count, tbb::task_group* group) {
+            Aabb box, centres;
+            for (uint32_t i = first; i < first + count; ++i) {
+                box.extend(t.items_[i].box);
+                centres.extend(0.5 * (t.items_[i].box.min + t.items_[i].box.max));
+            }
             Node& n = t.nodes_[node];
+            n.box = box;
             n.items = count;
             n.begin = first;
             if (count <= kLeafSize) {
-                Aabb box;
-                for (uint32_t i = first; i < first + count; ++i) box.extend(t.items_[i].box);
-                n.box = box;
                 n.first = first;
                 n.count = count;
                 return;
             }
-            Aabb centres;
-            for (uint32_t i = first; i < first + count; ++i) centres.extend(0.5 * (t.items_[i].box.min + t.items_[i].box.max));
             int axis = 0;
             const glm::dvec3 extent = centres.max - centres.min;
             if (extent.y > extent[axis]) axis = 1;
@@ -74,13 +73,6 @@ BoxTree::BoxTree(const std::vector<Aabb>& boxes) {
         b.build(0, 0, uint32_t(items_.size()), nullptr);
     }
     nodes_.resize(used.load());
-    // Children come after their parent.
-    for (size_t k = nodes_.size(); k-- > 0;) {
-        Node& n = nodes_[k];
-        if (n.count > 0) continue;
-        n.box = nodes_[n.first].box;
-        n.box.extend(nodes_[n.first + 1].box);
-    }
 }
 
 const BoxTree& MeshTreeCache::tree(const Mesh& mesh) {

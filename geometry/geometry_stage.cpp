@@ -209,7 +209,7 @@ private:
         // Facing: a one-sided receiver the light meets from behind or edge-on gets nothing.
         if (!r.twoSided && exactFacing(r.tri, r.mirrored, lg_) <= 0) return -1;
         // Range and cone.
-        if (boxBeyondRange(L_, r.box) || boxOutsideCone(L_, r.box)) return -1;
+        if (boxOutOfReach(L_, r.box)) return -1;
         // Terrain (terrain itself exempt): wholly deeper than the tolerance under the
         // lowest ground under its box (cheap), then under the ground triangles over it.
         if (w_.hasTerrain && !r.terrain) {
@@ -358,19 +358,6 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 const LightGeometry& lg = lightGeom[size_t(l)];
                 const ReceiverRules& rl = *rules[size_t(l)];
                 const bool local = L.type != LightType::Directional;
-                // Caster parts no point of which is within the light's range and cone: no p
-                // there (semantics.md, condition 3). A mesh-tree node by its placed corners'
-                // box (it holds the placed triangles; the rounding is far inside the reach
-                // margins), a triangle by its box.
-                auto outOfReach = [&](const Aabb& msBox) {
-                    Aabb ls;
-                    for (const glm::dvec3& p : placedCorners(msBox, wo.lsTransform)) ls.extend(p);
-                    return boxBeyondRange(L, ls) || boxOutsideCone(L, ls);
-                };
-                auto triangleOutOfReach = [&](const Triangle& t) {
-                    const Aabb b = triangleBox(t);
-                    return boxBeyondRange(L, b) || boxOutsideCone(L, b);
-                };
                 // The smallest bias the receiver rules give any receiver (a lower bound).
                 const double leastBias = std::max(0.0, L.bias * (1 - 1e-9) - 1e-12);
                 // Calls test(k, tri) for the receivers of the window the query may reach
@@ -384,6 +371,11 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     for (const glm::dvec3& p : placedCorners(msBox, o.lsTransform)) ls.extend(p);
                     return grown(ls, margin);  // the placed triangles' rounding, far inside
                 };
+                // Caster parts no point of which is within the light's range and cone hold no p
+                // (semantics.md, condition 3): a mesh-tree node by its placed box, a triangle
+                // by its box.
+                auto outOfReach = [&](const Aabb& msBox) { return boxOutOfReach(L, placedBox(wo, msBox)); };
+                auto triangleOutOfReach = [&](const Triangle& t) { return boxOutOfReach(L, triangleBox(t)); };
                 // `boxMay(lsBox)`: false when no point of the window-local box can be behind
                 // the caster (then the mesh tree's node whose receiving part it holds is not
                 // walked).

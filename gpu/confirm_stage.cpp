@@ -257,7 +257,6 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     // dense group the range sphere cuts is otherwise drawn whole, and its parts beyond
     // range pass where no shadow can be.
     const bool reachLimited = L.type != LightType::Directional;
-    auto outOfReach = [&](const Aabb& lsBox) { return boxBeyondRange(L, lsBox) || boxOutsideCone(L, lsBox); };
     std::vector<Caster> casters;  // by object, then by triangle
     std::vector<uint32_t> inReach;
     for (size_t k = 0; k < w.objects.size(); ++k) {
@@ -267,12 +266,12 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         const std::vector<uint32_t>* triangles = &work.treeOf(&mesh).triangles();
         if (reachLimited) {
             inReach.clear();
-            work.treeOf(&mesh).visit([&](const Aabb& box) { return !outOfReach(placedBounds(box, o.lsTransform)); },
+            work.treeOf(&mesh).visit([&](const Aabb& box) { return !boxOutOfReach(L, placedBounds(box, o.lsTransform)); },
                                      [&](uint32_t tr) {
                                          const auto& t = mesh.triangles[tr];
                                          Aabb tb;
                                          for (int c = 0; c < 3; ++c) tb.extend(position(uint32_t(k), t[c]));
-                                         if (!outOfReach(tb)) inReach.push_back(tr);
+                                         if (!boxOutOfReach(L, tb)) inReach.push_back(tr);
                                      });
             std::sort(inReach.begin(), inReach.end());
             triangles = &inReach;

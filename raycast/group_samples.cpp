@@ -120,19 +120,18 @@ std::vector<glm::dvec3> sampleGroupWithinReach(const WindowObject& object, uint3
                                                int maxFeatureSamples) {
     if (light.type == LightType::Directional) return {};
     const Mesh& mesh = *object.mesh;
-    auto outOfReach = [&](const Aabb& lsBox) { return boxBeyondRange(light, lsBox) || boxOutsideCone(light, lsBox); };
     std::vector<uint32_t> chosen;
     vertexIndex(mesh).triangles.forEach(
         [&](const glm::dvec3& lo, const glm::dvec3& hi) {
             Aabb placed;
             for (const glm::dvec3& p : placedCorners(Aabb{lo, hi}, object.lsTransform)) placed.extend(p);
-            return !outOfReach(placed);
+            return !boxOutOfReach(light, placed);
         },
         [&](uint32_t t) {
             if (mesh.triangleGroup[t] != group) return;
             Aabb placed;
             for (int c = 0; c < 3; ++c) placed.extend(object.lsTransform.apply(mesh.positions[mesh.triangles[t][c]]));
-            if (!outOfReach(placed)) chosen.push_back(t);
+            if (!boxOutOfReach(light, placed)) chosen.push_back(t);
         });
     std::sort(chosen.begin(), chosen.end());  // mesh order: the same points whatever the tree
     chosen.erase(std::remove_if(chosen.begin(), chosen.end(), [&](uint32_t t) { return !sampled(mesh, t); }), chosen.end());

@@ -213,11 +213,10 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
     // q lies within a point or spot light's reach (semantics.md): receivers, terrain
     // triangles and band nodes wholly beyond it get no target (world D: the lamp's bits aimed
     // at the ground lines of dense rocks 40-90 m away).
-    auto outOfReach = [&](const Aabb& box) { return boxBeyondRange(L, box) || boxOutsideCone(L, box); };
     for (uint32_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
         const bool terrain = o.kind == ChunkObject::Kind::Terrain;
-        if (outOfReach(o.lsBounds)) continue;
+        if (boxOutOfReach(L, o.lsBounds)) continue;
         const auto oc = o.lsBounds.corners();
         double oDeep = -std::numeric_limits<double>::infinity();
         for (const glm::dvec3& p : oc) oDeep = std::max(oDeep, frame.depth(p));
@@ -234,7 +233,7 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
                 if (local) {
                     Aabb tb;
                     for (const glm::dvec3& c : tri) tb.extend(c);
-                    if (outOfReach(tb)) continue;
+                    if (boxOutOfReach(L, tb)) continue;
                 }
                 if (!fp.meets(footprintOf(frame, tri, 0.0))) continue;
                 const glm::dvec3 n = glm::cross(tri[1] - tri[0], tri[2] - tri[0]) * (o.flipsWinding ? -1.0 : 1.0);
@@ -303,7 +302,7 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
                     pLo[a] = -placedCoordinateUpper(o.lsTransform, a, -1.0, lo, hi);
                 }
                 if (pHi.y < bottom || pLo.y > highest) return false;  // every vertex on one side
-                if (local && outOfReach(Aabb{pLo, pHi})) return false;
+                if (local && boxOutOfReach(L, Aabb{pLo, pHi})) return false;
                 if (pHi.y - pLo.y > 0.25 * (highest - bottom)) return true;  // large: its children will tell
                 // The ground under the node alone: its vertices are all above it (no
                 // terrain counts as above), or all under it less the level. Margins: the
