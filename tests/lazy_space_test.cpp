@@ -68,6 +68,21 @@ std::string firstDifference(const std::vector<std::string>& a, const std::vector
     return {};
 }
 
+// Loads every chunk of `source` until one fails: the failure must be the Io error naming
+// `file` as changed on disk since the scan.
+void expectLoadingRefuses(SpaceSource& source, const std::string& file) {
+    Space lazy;
+    std::vector<Diagnostic> late;
+    bool failed = false;
+    for (const auto& [c, entry] : source.chunks())
+        if (Status s = source.load(c, lazy, late); !s) {
+            failed = true;
+            EXPECT_NE(s.error().what().find(file + ": changed on disk while the bake ran"), std::string::npos) << s.error().what();
+            break;
+        }
+    EXPECT_TRUE(failed);
+}
+
 }  // namespace
 
 // The scan says what loadSpace says (warnings in its order, input files), and a chunk loaded
@@ -132,16 +147,7 @@ TEST(SpaceSource, AResourceChangedSinceTheScanIsAnError) {
     Expected<SpaceSource> source = SpaceSource::scan((dir / "space").string(), "");
     ASSERT_TRUE(source);
     writeText(dir / "space/models/rock_a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-    Space lazy;
-    std::vector<Diagnostic> late;
-    bool failed = false;
-    for (const auto& [c, entry] : source->chunks())
-        if (Status s = source->load(c, lazy, late); !s) {
-            failed = true;
-            EXPECT_NE(s.error().what().find("rock_a.obj: changed on disk while the bake ran"), std::string::npos) << s.error().what();
-            break;
-        }
-    EXPECT_TRUE(failed);
+    expectLoadingRefuses(*source, "rock_a.obj");
 }
 
 namespace {
@@ -202,17 +208,7 @@ TEST(SpaceSource, AParkedMeshWhoseFileChangedIsReadAgain) {
             text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
         }
         writeText(rock, text);
-        Space lazy;
-        std::vector<Diagnostic> late;
-        bool failed = false;
-        for (const auto& [c, entry] : source->chunks())
-            if (Status s = source->load(c, lazy, late); !s) {
-                failed = true;
-                EXPECT_NE(s.error().what().find("rock_a.obj: changed on disk while the bake ran"), std::string::npos)
-                    << s.error().what();
-                break;
-            }
-        EXPECT_TRUE(failed);
+        expectLoadingRefuses(*source, "rock_a.obj");
     }
 }
 
