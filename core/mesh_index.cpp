@@ -7,7 +7,9 @@
 #include <limits>
 
 #include <glm/common.hpp>
+#include <glm/geometric.hpp>
 
+#include "core/median_split.h"
 #include "core/mesh.h"
 #include "core/scene.h"
 #include "core/window.h"
@@ -23,9 +25,6 @@ constexpr uint32_t kLeafSize = 16;
 template <class Box>
 void MeshTree::build(const Box& box) {
     if (order_.empty()) return;
-    nodes_.reserve(2 * (order_.size() / kLeafSize + 1));
-    std::vector<int32_t> todo{0};
-    nodes_.push_back({glm::dvec3(0.0), glm::dvec3(0.0), 0, uint32_t(order_.size()), -1, -1});
     // Each item's box centre, for the splits (by item index: the order is permuted).
     std::vector<glm::dvec3> centre;
     uint32_t maxItem = 0;
@@ -36,32 +35,26 @@ void MeshTree::build(const Box& box) {
         box(i, lo, hi);
         centre[i] = 0.5 * (lo + hi);
     }
-    while (!todo.empty()) {
-        const int32_t ni = todo.back();
-        todo.pop_back();
-        Node n = nodes_[size_t(ni)];
+    const std::vector<SplitNode> split = medianSplit(order_, centre, kLeafSize);
+    // Boxes bottom up: a leaf's from its items, an inner node's from its children (min and
+    // max are exact, so each is the exact box of its items' vertices).
+    nodes_.resize(split.size());
+    for (size_t k = split.size(); k-- > 0;) {
+        const SplitNode& s = split[k];
+        Node& n = nodes_[k];
+        n.begin = s.begin;
+        n.end = s.end;
         n.lo = glm::dvec3(std::numeric_limits<double>::infinity());
         n.hi = glm::dvec3(-std::numeric_limits<double>::infinity());
-        glm::dvec3 clo = n.lo, chi = n.hi;
-        for (uint32_t k = n.begin; k < n.end; ++k) {
-            box(order_[k], n.lo, n.hi);
-            clo = glm::min(clo, centre[order_[k]]);
-            chi = glm::max(chi, centre[order_[k]]);
+        if (s.left < 0) {
+            for (uint32_t i = s.begin; i < s.end; ++i) box(order_[i], n.lo, n.hi);
+        } else {
+            n.left = s.left;
+            n.right = s.left + 1;
+            const Node &a = nodes_[size_t(n.left)], &b = nodes_[size_t(n.right)];
+            n.lo = glm::min(a.lo, b.lo);
+            n.hi = glm::max(a.hi, b.hi);
         }
-        if (n.end - n.begin > kLeafSize) {
-            const glm::dvec3 side = chi - clo;
-            const int axis = side.x >= side.y && side.x >= side.z ? 0 : side.y >= side.z ? 1 : 2;
-            const uint32_t mid = n.begin + (n.end - n.begin) / 2;
-            std::nth_element(order_.begin() + n.begin, order_.begin() + mid, order_.begin() + n.end,
-                             [&](uint32_t a, uint32_t b) { return centre[a][axis] < centre[b][axis]; });
-            n.left = int32_t(nodes_.size());
-            n.right = n.left + 1;
-            nodes_.push_back({glm::dvec3(0.0), glm::dvec3(0.0), n.begin, mid, -1, -1});
-            nodes_.push_back({glm::dvec3(0.0), glm::dvec3(0.0), mid, n.end, -1, -1});
-            todo.push_back(n.left);
-            todo.push_back(n.right);
-        }
-        nodes_[size_t(ni)] = n;
     }
 }
 
@@ -117,6 +110,8 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
     std::vector<uint32_t> all;
     std::vector<std::vector<uint32_t>> group(ng), withArea(ng);
     index->groupTriangles.assign(ng, 0);
+    index->groupTrianglesWithArea.assign(ng, 0);
+    index->groupArea.assign(ng, 0.0);
     for (uint32_t t = 0; t < m.triangles.size(); ++t) {
         all.push_back(t);
         const size_t g = m.triangleGroup[t];
@@ -124,7 +119,11 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
         ++index->groupTriangles[g];
         group[g].push_back(t);
         const auto& tri = m.triangles[t];
-        if (!hasRepeatedVertex(m.positions[tri[0]], m.positions[tri[1]], m.positions[tri[2]])) withArea[g].push_back(t);
+        const glm::dvec3 &a = m.positions[tri[0]], &b = m.positions[tri[1]], &c = m.positions[tri[2]];
+        index->groupArea[g] += 0.5 * glm::length(glm::cross(b - a, c - a));
+        if (hasRepeatedVertex(a, b, c)) continue;
+        withArea[g].push_back(t);
+        ++index->groupTrianglesWithArea[g];
     }
     index->triangles = MeshTree::overTriangles(m);
     index->used = treeOf(verticesOf(all));
@@ -174,6 +173,24 @@ double placedDotUpper(const RowTransform& t, const glm::dvec3& d, const glm::dve
         magnitude += std::max(std::abs(lo[k]), std::abs(hi[k])) * cAbs;
     }
     return extreme + 1e-12 * magnitude + 1e-300;
+}
+
+std::pair<double, double> areaScaleBounds(const RowTransform& t) {
+    // A maps a triangle's area by |cof(A) n| (n its unit normal), between the least and
+    // the largest product of two singular values, so between the extreme eigenvalues of
+    // the Gram matrix G = A^T A (the squared singular values). Gershgorin's discs bound
+    // those; they are exact for a rotation with a uniform scale (G diagonal).
+    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    for (int i = 0; i < 3; ++i) {
+        double off = 0.0;
+        for (int j = 0; j < 3; ++j)
+            if (j != i) off += std::abs(glm::dot(t.rows[size_t(i)], t.rows[size_t(j)]));
+        const double diag = glm::dot(t.rows[size_t(i)], t.rows[size_t(i)]);
+        lo = std::min(lo, diag - off);
+        hi = std::max(hi, diag + off);
+    }
+    // The dot products' rounding: a relative 1e-12 covers it many times over.
+    return {std::max(0.0, lo * (1 - 1e-12)), hi * (1 + 1e-12)};
 }
 
 std::optional<std::pair<glm::dvec3, glm::dvec3>> placedBox(const VertexTree& tree, const std::vector<glm::dvec3>& positions,

@@ -81,6 +81,10 @@ struct MeshVertexIndex {
     // vertices (hasRepeatedVertex). Subsets equal to another share its tree.
     std::vector<const VertexTree*> group, groupWithArea;
     std::vector<uint64_t> groupTriangles;   // per group: its triangles
+    std::vector<uint64_t> groupTrianglesWithArea;  // per group: those with three distinct vertices
+    // Per group: the sum of its triangles' areas in mesh coordinates (m^2, rounded: a sum
+    // in double, relative error below 1e-12 for any mesh the limits allow).
+    std::vector<double> groupArea;
     MeshTree triangles;                     // every triangle
     std::deque<VertexTree> trees;           // the storage behind the pointers
 };
@@ -104,6 +108,11 @@ private:
     mutable std::mutex mutex_;
     mutable std::shared_ptr<const MeshVertexIndex> index_;
 };
+
+// Bounds on the factor by which t's linear part scales the area of any triangle: every
+// placed triangle's area lies in [first, second] times its mesh area (conservative,
+// rounding included; equal up to rounding for a rotation with a uniform scale).
+std::pair<double, double> areaScaleBounds(const RowTransform& t);
 
 // The box of t.apply(p) over the tree's vertices p: bit for bit the box a loop over them
 // with Aabb::extend computes (min and max per axis). Nothing when a coordinate of the box

@@ -7,8 +7,12 @@
 #include <filesystem>
 #include <limits>
 #include <set>
+#include <unordered_map>
 
 #include <glm/common.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
 
 #include "core/format.h"
 #include "core/hash.h"
@@ -102,6 +106,45 @@ const ResourceSummary* SpaceSource::resource(const ChunkObject& o) const {
 }
 
 Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>& diagnostics) {
+    // The resources this chunk uses first, loaded in parallel (a dense world's few unique
+    // meshes, parsed one after the other, were most of its scan), then judged below in
+    // object order, as before: the diagnostics and what is kept do not depend on threads.
+    struct FirstUse {
+        std::string key;
+        fs::file_time_type parseStart;
+        std::shared_ptr<const Mesh> mesh;
+        std::shared_ptr<const Heightfield> terrain;
+        std::optional<Error> error;
+        ResourceSummary summary;
+    };
+    std::vector<FirstUse> firstUses;
+    std::unordered_map<std::string, size_t> firstUseOf;
+    for (const ChunkObject& o : cf.objects) {
+        if (o.skipped) continue;
+        std::string key = keyOf(o);
+        if (resources_.count(key) || firstUseOf.count(key)) continue;
+        firstUseOf.emplace(key, firstUses.size());
+        firstUses.push_back({std::move(key), {}, nullptr, nullptr, std::nullopt, {}});
+    }
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, firstUses.size(), 1),
+        [&](const tbb::blocked_range<size_t>& range) {
+            for (size_t k = range.begin(); k != range.end(); ++k) {
+                FirstUse& u = firstUses[k];
+                const std::string full = u.key.substr(2);
+                if (u.key[0] == 'm') {
+                    u.parseStart = fs::file_time_type::clock::now();
+                    Expected<Mesh> m = loadModelResource(full);
+                    if (!m) u.error = m.error();
+                    else u.mesh = std::make_shared<const Mesh>(std::move(*m)), u.summary = summarize(*u.mesh);
+                } else {
+                    Expected<Heightfield> t = loadTerrainResource(full, settings_.chunkSize);
+                    if (!t) u.error = t.error();
+                    else u.terrain = std::make_shared<const Heightfield>(std::move(*t)), u.summary = summarize(*u.terrain);
+                }
+            }
+        },
+        tbb::simple_partitioner());
     for (ChunkObject& o : cf.objects) {
         if (o.skipped) continue;
         const std::string key = keyOf(o);
@@ -113,19 +156,12 @@ Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>&
         if (found == resources_.end()) {
             // First use: load it, and say once what is wrong with it (the objects are named
             // one by one below).
-            ResourceSummary s;
-            if (model) {
-                const fs::file_time_type parseStart = fs::file_time_type::clock::now();
-                Expected<Mesh> m = loadModelResource(full);
-                if (m) mesh = std::make_shared<const Mesh>(std::move(*m)), s = summarize(*mesh);
-                else diagnostics.push_back({m.error().file, m.error().line, m.error().message + "; every object using it is skipped"});
-                if (mesh && !attach) park(key, mesh, parseStart);
-            } else {
-                Expected<Heightfield> t = loadTerrainResource(full, settings_.chunkSize);
-                if (t) terrain = std::make_shared<const Heightfield>(std::move(*t)), s = summarize(*terrain);
-                else diagnostics.push_back({t.error().file, t.error().line, t.error().message + "; every object using it is skipped"});
-            }
-            found = resources_.emplace(key, std::move(s)).first;
+            FirstUse& u = firstUses[firstUseOf.at(key)];
+            if (u.error) diagnostics.push_back({u.error->file, u.error->line, u.error->message + "; every object using it is skipped"});
+            mesh = std::move(u.mesh);
+            terrain = std::move(u.terrain);
+            if (mesh && !attach) park(key, mesh, u.parseStart);
+            found = resources_.emplace(key, std::move(u.summary)).first;
             if (mesh) liveMeshes_.emplace(key, mesh);
             if (terrain) liveTerrains_.emplace(key, terrain);
         }

@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <unordered_set>
+#include <vector>
+
+#include <tbb/parallel_for_each.h>
 
 namespace shadowcull {
 
@@ -195,6 +199,22 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
     w.terrainTolerance = S.terrainTolerance;
     auto cit = space.chunks.find(centre);
     if (cit != space.chunks.end()) w.centrePath = cit->second.path;
+
+    // The window's meshes' indexes, those not built yet built in parallel: a dense mesh's
+    // (a 180,000-triangle scan's trees) are most of its first window's own work, and the
+    // loops below would build them one after the other.
+    {
+        std::unordered_set<const Mesh*> seen;
+        std::vector<const Mesh*> meshes;
+        for (int dx = -S.neighbours.left; dx <= S.neighbours.right; ++dx)
+            for (int dz = -S.neighbours.bottom; dz <= S.neighbours.top; ++dz) {
+                auto it = space.chunks.find({centre.x + dx, centre.z + dz});
+                if (it == space.chunks.end()) continue;
+                for (const ChunkObject& o : it->second.objects)
+                    if (!o.skipped && o.mesh && seen.insert(o.mesh.get()).second) meshes.push_back(o.mesh.get());
+            }
+        tbb::parallel_for_each(meshes.begin(), meshes.end(), [](const Mesh* m) { vertexIndex(*m); });
+    }
 
     // Vertical origin: middle of the centre chunk's world-space heights, rounded to a whole
     // metre so that lifting the space by whole metres shifts it exactly.

@@ -2,9 +2,10 @@
 // geometry stage's broad phase (one tree over a window's objects, one per unique mesh in
 // mesh coordinates, shared by its instances and kept across windows).
 //
-// Median splits on the longest axis of the centres, leaves of kLeafSize. The predicate
-// decides whether a subtree may hold an answer; it must be conservative (true whenever a
-// box it was asked about could hold one): the tree only ever skips what it says cannot.
+// Median splits on the longest axis of the centres (core/median_split.h), leaves of
+// kLeafSize. The predicate decides whether a subtree may hold an answer; it must be
+// conservative (true whenever a box it was asked about could hold one): the tree only ever
+// skips what it says cannot.
 #pragma once
 
 #include <atomic>

@@ -24,6 +24,7 @@
 #include "core/float_mode.h"
 #include "core/format.h"
 #include "core/light_reach.h"
+#include "core/mesh_index.h"
 #include "geometry/exact_frustum.h"
 #include "geometry/shadow_query.h"
 
@@ -638,13 +639,14 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         contradictionAt = wo.label + " group " + std::to_string(task.group) + " light " + std::to_string(l + 1);
                     continue;
                 }
-                Aabb volume;
-                size_t casterCount = 0;
-                forCasterTriangles([&](const Triangle& t) {
-                    volume.extend(frustumBox(t, L, limits, margin));
-                    ++casterCount;
-                    return false;
-                });
+                // For the note: a box holding the volume, the frustum box of the group's placed
+                // box (each caster triangle lies in it, so its frustum in that box's), not
+                // the union over triangles: that cost a dense mesh's instance one frustum box
+                // per triangle and light, for a note.
+                const Aabb groupBox = lsGroupBounds(wo, uint32_t(task.group), true);
+                const std::array<glm::dvec3, 8> groupCorners = groupBox.corners();
+                const Aabb volume = groupBox.empty() ? Aabb{} : shadowBox(groupCorners.data(), 8, L, limits, margin);
+                const uint64_t casterCount = vertexIndex(*wo.mesh).groupTrianglesWithArea[size_t(task.group)];
                 decide(d, Verdict::Culled, "geometry",
                        "no receiver in the shadow volume (" + std::to_string(casterCount) +
                            " caster triangles; volume within " + worldBox(volume, window.wsOrigin) + ")" +

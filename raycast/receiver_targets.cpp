@@ -107,14 +107,25 @@ struct BandSegment {
 
 bool isLargeCaster(const WindowObject& o, uint32_t group, int areaSamples, double minSpacing) {
     if (o.kind == ChunkObject::Kind::Terrain) return true;
-    double area = 0.0;
     const Mesh& m = *o.mesh;
+    auto large = [&](double area) { return std::sqrt(area / double(std::max(1, areaSamples))) >= minSpacing; };
+    // The placed area from the mesh's (kept with its index) and bounds on the transform's
+    // scale of areas, where those decide as the loop below would: the 1e-9 covers both sums'
+    // rounding. Otherwise (a shear or a non-uniform scale near the limit) the loop.
+    const MeshVertexIndex& index = vertexIndex(m);
+    if (group < index.groupArea.size()) {
+        const auto [scaleLo, scaleHi] = areaScaleBounds(o.lsTransform);
+        const double msArea = index.groupArea[group];
+        if (large(msArea * scaleLo * (1 - 1e-9))) return true;
+        if (!large(msArea * scaleHi * (1 + 1e-9))) return false;
+    }
+    double area = 0.0;
     for (size_t t = 0; t < m.triangles.size(); ++t) {
         if (m.triangleGroup[t] != group) continue;
         const auto [a, b, c] = o.lsTriangle(t);
         area += 0.5 * glm::length(glm::cross(b - a, c - a));
     }
-    return std::sqrt(area / double(std::max(1, areaSamples))) >= minSpacing;
+    return large(area);
 }
 
 std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, uint32_t group, const Light& L, int budget,

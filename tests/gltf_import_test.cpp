@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <functional>
+#include <limits>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -260,7 +261,7 @@ TEST(GltfImport, GltfpackCompressedScenesGiveTheSameMasks) {
 struct BadScene {
     std::string name, expect;
     std::function<void(GltfSceneBuilder&)> edit;
-    std::string args;
+    std::string args = "";  // extra import options
 };
 
 TEST(GltfImport, BadScenesAreRefusedWithTheirJsonPathAndNothingIsWritten) {
@@ -270,7 +271,7 @@ TEST(GltfImport, BadScenesAreRefusedWithTheirJsonPathAndNothingIsWritten) {
         {"missing default scene", "scenes[4] does not exist", [](GltfSceneBuilder& b) { b.doc()["scene"] = 4; }},
         {"singular", "nodes[5]: the composed node transform is singular",
          [](GltfSceneBuilder& b) { b.doc()["nodes"][5]["scale"] = {1.0, 0.0, 1.0}; }},
-        {"non-finite", "nodes[5].translation", [](GltfSceneBuilder& b) { b.doc()["nodes"][5]["translation"] = {1.0, 1e400, 1.0}; }},
+        {"non-finite", "nodes[5].translation", [](GltfSceneBuilder& b) { b.doc()["nodes"][5]["translation"] = {1.0, std::numeric_limits<double>::infinity(), 1.0}; }},
         {"unknown light type", "extensions.KHR_lights_punctual.lights[1].type: unknown light type 'area'",
          [](GltfSceneBuilder& b) { b.doc()["extensions"]["KHR_lights_punctual"]["lights"][1]["type"] = "area"; }},
         {"no lights", "--sun", [](GltfSceneBuilder& b) {

@@ -8,6 +8,7 @@
 #include <set>
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include "bench/world_gen.h"
 #include "cli/pipeline.h"
@@ -83,20 +84,26 @@ void expectLoadingRefuses(SpaceSource& source, const std::string& file) {
     EXPECT_TRUE(failed);
 }
 
+// A copy of the sample with bad resources: the trees' material missing, the chunk
+// ffffffffo's rock_a renamed to a model that does not exist. Returns the space.
+fs::path sampleWithBadResources(const fs::path& dir) {
+    fs::copy(kSample, dir / "space", fs::copy_options::recursive);
+    const fs::path space = dir / "space";
+    fs::remove(space / "models/tree.mtl");
+    std::string text = readText(space / "ffffffffo.chunk");
+    text.replace(text.find("models/rock_a"), 13, "models/nope");
+    writeText(space / "ffffffffo.chunk", text);
+    return space;
+}
+
 }  // namespace
 
 // The scan says what loadSpace says (warnings in its order, input files), and a chunk loaded
 // lazily is the chunk loadSpace reads: same objects, skipped alike, same mesh content.
 TEST(SpaceSource, LazyChunksAreTheChunksLoadSpaceReads) {
-    const fs::path dir = freshTestDir();
-    fs::copy(kSample, dir / "space", fs::copy_options::recursive);
-    const fs::path space = dir / "space";
     // A bad resource shared by many objects, a missing one, a bad name, a singular transform.
-    fs::remove(space / "models/tree.mtl");
+    const fs::path space = sampleWithBadResources(freshTestDir());
     writeText(space / "zz.chunk", "<chunk/>\n");
-    std::string text = readText(space / "ffffffffo.chunk");
-    text.replace(text.find("models/rock_a"), 13, "models/nope");
-    writeText(space / "ffffffffo.chunk", text);
 
     Expected<Space> eager = loadSpace(space.string(), "");
     ASSERT_TRUE(eager) << eager.error().what();
@@ -138,6 +145,38 @@ TEST(SpaceSource, LazyChunksAreTheChunksLoadSpaceReads) {
     TerrainMeshes terrainMeshes;
     for (const auto& [c, entry] : source->chunks()) source->unload(c, lazy, terrainMeshes);
     EXPECT_EQ(source->liveResources(), 0u);
+}
+
+// The resources a chunk uses first are loaded in parallel, and judged in object order: a
+// chunk with several bad ones (a missing material, a missing OBJ, a malformed one) gets the
+// same diagnostics in the same order on one thread as on two, and the same summaries.
+TEST(SpaceSource, FirstUsesLoadedInParallelAreReportedInObjectOrder) {
+    const fs::path space = sampleWithBadResources(freshTestDir());
+    writeText(space / "models/rock_b.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
+    const std::string text = readText(space / "ffffffffo.chunk");
+    auto scan = [&](int threads) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+        Expected<SpaceSource> source = SpaceSource::scan(space.string(), "");
+        EXPECT_TRUE(source) << source.error().what();
+        std::vector<std::string> said;
+        if (source)
+            for (const Diagnostic& d : source->diagnostics()) said.push_back(d.what());
+        return said;
+    };
+    const std::vector<std::string> one = scan(1), two = scan(2);
+    EXPECT_EQ(one, two);
+    auto at = [&](const std::string& what) {
+        for (size_t k = 0; k < two.size(); ++k)
+            if (two[k].find(what) != std::string::npos) return int(k);
+        return -1;
+    };
+    const int tree = at("tree.mtl"), nope = at("models/nope.obj"), rock = at("rock_b.obj:4");
+    ASSERT_GE(tree, 0);
+    ASSERT_GE(nope, 0);
+    ASSERT_GE(rock, 0);
+    // ffffffffo.chunk names the rock_a (now nope) before rock_b, and both before the trees.
+    EXPECT_LT(text.find("models/nope"), text.find("models/rock_b"));
+    EXPECT_LT(nope, rock);
 }
 
 // A resource edited while the bake runs is not silently used in place of what the scan read.

@@ -123,6 +123,52 @@ TEST(MeshIndex, PlacedBoxesAreTheLoopsBitForBit) {
 
 // The bounds are conservative: every vertex's placed value lies under them, and so does
 // the true value of every point of the box (checked at its corners, in long double).
+// Every placed triangle's area lies within the transform's area-scale bounds times its
+// mesh area, on turned, mirrored, per-axis scaled and sheared placements; a turn with a
+// uniform scale gets bounds that agree up to rounding. The index's group areas are the
+// loop's sums.
+TEST(MeshIndex, AreaScaleBoundsHoldEveryPlacedTriangle) {
+    std::mt19937 rng(29);
+    const Mesh mesh = jaggedSheet(24, rng);
+    const MeshVertexIndex& index = vertexIndex(mesh);
+    auto area = [](const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+        return 0.5 * glm::length(glm::cross(b - a, c - a));
+    };
+    std::vector<double> sums(mesh.groups.size(), 0.0);
+    for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const auto& i = mesh.triangles[t];
+        sums[mesh.triangleGroup[t]] += area(mesh.positions[i[0]], mesh.positions[i[1]], mesh.positions[i[2]]);
+    }
+    ASSERT_EQ(index.groupArea.size(), sums.size());
+    for (size_t g = 0; g < sums.size(); ++g) EXPECT_NEAR(index.groupArea[g], sums[g], 1e-12 * (sums[g] + 1e-300));
+    EXPECT_GT(index.groupArea[0], 3.9);  // half of a 4 m x 4 m sheet, zigzagging
+    EXPECT_EQ(index.groupArea[2], 0.0);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+    for (int rep = 0; rep < 60; ++rep) {
+        RowTransform t = randomTransform(rng, 1e5);
+        const bool uniform = rep % 3 == 0, sheared = rep % 3 == 1;
+        if (uniform) {  // a turn and one scale, mirrored or not
+            const double s = 0.3 + 2.0 * (unit(rng) + 1.0);
+            for (int k = 0; k < 3; ++k) t.rows[size_t(k)] = s * glm::normalize(t.rows[size_t(k)]);
+        }
+        if (sheared) t.rows[1] += 0.7 * unit(rng) * t.rows[0] + 0.4 * unit(rng) * t.rows[2];
+        const auto [lo, hi] = areaScaleBounds(t);
+        ASSERT_LE(lo, hi);
+        if (uniform) {
+            EXPECT_LE(hi, lo * (1 + 1e-9)) << "a uniform scale's bounds are tight";
+        }
+        for (size_t k = 0; k < mesh.triangles.size(); ++k) {
+            const auto& i = mesh.triangles[k];
+            const double ms = area(mesh.positions[i[0]], mesh.positions[i[1]], mesh.positions[i[2]]);
+            if (ms == 0.0) continue;
+            const double ls = area(t.applyLinear(mesh.positions[i[0]]), t.applyLinear(mesh.positions[i[1]]),
+                                   t.applyLinear(mesh.positions[i[2]]));
+            EXPECT_GE(ls, lo * ms * (1 - 1e-9)) << "rep " << rep << " triangle " << k;
+            EXPECT_LE(ls, hi * ms * (1 + 1e-9)) << "rep " << rep << " triangle " << k;
+        }
+    }
+}
+
 TEST(MeshIndex, NodeBoundsHoldEveryVertex) {
     std::mt19937 rng(7);
     const Mesh mesh = jaggedSheet(60, rng);

@@ -3,6 +3,8 @@
 // own samples miss it and rays through the receivers in its shadow find it.
 
 #include <algorithm>
+#include <cmath>
+#include <random>
 
 #include <gtest/gtest.h>
 
@@ -212,6 +214,56 @@ TEST(ReceiverSide, TargetsAreDeterministicBoundedAndReachSmallReceivers) {
             EXPECT_FALSE(raycast::isLargeCaster(w.objects[k], 0, 256, 0.5));
         }
     }
+}
+
+// Whether a caster is large (the receiver-side search's trigger) is decided from the mesh's
+// group area and the transform's area-scale bounds where those decide, and by the loop over
+// the placed triangles otherwise: the answer is the loop's, for thresholds a hair either
+// side of the placed area, on uniform scales, per-axis scales and shears.
+TEST(ReceiverSide, LargeCasterIsTheLoopsAnswer) {
+    Mesh m;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+    for (int k = 0; k < 300; ++k) m.positions.push_back({2.0 * unit(rng), 0.5 * unit(rng), 2.0 * unit(rng)});
+    for (uint32_t k = 0; k + 2 < 300; k += 3) {
+        m.triangles.push_back({k, k + 1, k + 2});
+        m.triangleGroup.push_back(k % 2);
+    }
+    m.groups.resize(2);
+    auto placedArea = [&](const WindowObject& o, uint32_t g) {
+        double a = 0.0;
+        for (size_t t = 0; t < m.triangles.size(); ++t) {
+            if (m.triangleGroup[t] != g) continue;
+            const auto [p, q, r] = o.lsTriangle(t);
+            a += 0.5 * glm::length(glm::cross(q - p, r - p));
+        }
+        return a;
+    };
+    const int samples = 256;
+    int checked = 0;
+    for (int rep = 0; rep < 30; ++rep) {
+        WindowObject o;
+        o.mesh = &m;
+        const double s = 0.5 + unit(rng) * 0.4;
+        const double turn = 3.0 * unit(rng);
+        o.lsTransform.rows[0] = s * glm::dvec3(std::cos(turn), 0.0, -std::sin(turn));
+        o.lsTransform.rows[1] = glm::dvec3(0.0, s, 0.0);
+        o.lsTransform.rows[2] = s * glm::dvec3(std::sin(turn), 0.0, std::cos(turn));
+        o.lsTransform.rows[3] = glm::dvec3(1e5, 10.0, -1e5);
+        if (rep % 3 == 1) o.lsTransform.rows[1] *= 2.5;                     // a per-axis scale
+        if (rep % 3 == 2) o.lsTransform.rows[2] += 0.6 * o.lsTransform.rows[0];  // a shear
+        for (uint32_t g = 0; g < 2; ++g) {
+            const double area = placedArea(o, g);
+            for (double f : {0.5, 1.0 - 1e-6, 1.0 - 1e-13, 1.0 + 1e-13, 1.0 + 1e-6, 2.0}) {
+                // The spacing whose threshold is f times the placed area.
+                const double spacing = std::sqrt(f * area / samples);
+                const bool loop = std::sqrt(area / samples) >= spacing;
+                EXPECT_EQ(raycast::isLargeCaster(o, g, samples, spacing), loop) << "rep " << rep << " group " << g << " f " << f;
+                ++checked;
+            }
+        }
+    }
+    EXPECT_EQ(checked, 30 * 2 * 6);
 }
 
 // The plate 9.8 mm under the ground: 0.2 mm inside the 1 cm band, less than the float

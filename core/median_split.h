@@ -1,0 +1,30 @@
+// Median splits: the one builder behind core's MeshTree and the geometry stage's BoxTree.
+//
+// A range of more than `leafSize` items is halved at its median (count / 2, the lower half
+// left) along the longest side of the box of its items' centres (ties: x, then y). Balanced,
+// so that queries' stacks stay shallow (depth about log2(n / leafSize) + 1). The items are
+// sorted by a key array of their centres (32 bytes each, moved by nth_element), not by
+// indices into the callers' own records: building the trees of a 180,000-triangle mesh
+// was a large part of a dense world's first window.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace shadowcull {
+
+struct SplitNode {
+    uint32_t begin = 0, end = 0;  // its items: order[begin, end)
+    int32_t left = -1;            // inner: the left child's index (the right one's is left + 1); leaf: -1
+};
+
+// Permutes `order` (item indices; centres[item] is the item's centre) leaf by leaf and
+// returns the nodes: the root first, every child after its parent (a pass from the last
+// node back computes children before parents), siblings side by side.
+// Node indices, order and shape depend only on the input (not on threads: large subtrees
+// are built in parallel, each into slots counted out in advance).
+std::vector<SplitNode> medianSplit(std::vector<uint32_t>& order, const std::vector<glm::dvec3>& centres, uint32_t leafSize);
+
+}  // namespace shadowcull
