@@ -1,5 +1,6 @@
 // The heap settings every executable applies first (core/heap_tuning.h).
 
+#include <chrono>
 #include <cstdint>
 #include <cstdlib>
 #include <fstream>
@@ -9,6 +10,8 @@
 
 #if defined(__GLIBC__)
 #include <malloc.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #endif
 
 #include <gtest/gtest.h>
@@ -76,6 +79,33 @@ TEST(HeapTuning, TheHeapsAreAdvisedForHugePages) {
     EXPECT_NE(otherFlags.find(" hg"), std::string::npos) << otherFlags;
     std::free(main);
     std::free(other);
+#else
+    GTEST_SKIP() << "glibc only";
+#endif
+}
+
+// The watcher thread scans while the process exits: exiting at any moment after the tuning
+// is a clean exit (its state was a static, destroyed under a scan: the CLI died of SIGSEGV
+// in one exit out of a few). Each child is this test binary, started afresh (forking this
+// multi-threaded process would copy locks other threads hold), exiting a little later
+// than the one before, across the watcher's first scans.
+TEST(HeapTuning, ExitingWhileTheWatcherScansIsClean) {
+#if defined(__GLIBC__)
+    if (const char* delay = std::getenv("SHADOWCULL_HEAP_EXIT_CHILD")) {
+        // A teardown that takes a while after the statics are gone (the CLI's libraries
+        // unload for milliseconds): registered first, so it runs after their destructors.
+        std::atexit([] { std::this_thread::sleep_for(std::chrono::milliseconds(20)); });
+        tuneHeapForLongBakes();
+        std::this_thread::sleep_for(std::chrono::microseconds(std::atoi(delay)));
+        std::exit(0);  // the watcher keeps scanning while the process exits
+    }
+    for (int k = 0; k < 24; ++k) {
+        const std::string cmd = "SHADOWCULL_HEAP_EXIT_CHILD=" + std::to_string(250 * k) +
+                                " /proc/" + std::to_string(getpid()) +
+                                "/exe --gtest_filter=HeapTuning.ExitingWhileTheWatcherScansIsClean > /dev/null 2>&1";
+        const int status = std::system(cmd.c_str());
+        ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "child " << k << ": status " << status;
+    }
 #else
     GTEST_SKIP() << "glibc only";
 #endif
