@@ -18,12 +18,12 @@ namespace shadowcull {
 
 namespace {
 
-constexpr uint32_t kLeafSize = 16;
+constexpr uint32_t kVertexLeaf = 16;
 
 }  // namespace
 
 template <class Box>
-void MeshTree::build(const Box& box) {
+void MeshTree::build(const Box& box, uint32_t leafSize) {
     if (order_.empty()) return;
     // Each item's box centre, for the splits (by item index: the order is permuted).
     std::vector<glm::dvec3> centre;
@@ -35,7 +35,7 @@ void MeshTree::build(const Box& box) {
         box(i, lo, hi);
         centre[i] = 0.5 * (lo + hi);
     }
-    const std::vector<SplitNode> split = medianSplit(order_, centre, kLeafSize);
+    const std::vector<SplitNode> split = medianSplit(order_, centre, leafSize);
     // Boxes bottom up: a leaf's from its items, an inner node's from its children (min and
     // max are exact, so each is the exact box of its items' vertices).
     nodes_.resize(split.size());
@@ -62,7 +62,7 @@ MeshTree::MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_
     build([&](uint32_t v, glm::dvec3& lo, glm::dvec3& hi) {
         lo = glm::min(lo, positions[v]);
         hi = glm::max(hi, positions[v]);
-    });
+    }, kVertexLeaf);
 }
 
 MeshTree MeshTree::overTriangles(const Mesh& mesh) {
@@ -74,7 +74,7 @@ MeshTree MeshTree::overTriangles(const Mesh& mesh) {
             lo = glm::min(lo, mesh.positions[v]);
             hi = glm::max(hi, mesh.positions[v]);
         }
-    });
+    }, kTriangleLeaf);
     return tree;
 }
 

@@ -32,8 +32,8 @@ struct Mesh;
 struct RowTransform;
 
 // A box tree over items of a mesh (a subset of its vertices, or its triangles), in mesh
-// coordinates (metres). Leaves hold up to 16 items; a node's box is the exact box of its
-// items' vertices (no rounding: min/max).
+// coordinates (metres). Leaves hold up to 16 vertices or 4 triangles; a node's box is the
+// exact box of its items' vertices (no rounding: min/max).
 class MeshTree {
 public:
     struct Node {
@@ -44,7 +44,10 @@ public:
     MeshTree() = default;
     // A tree over vertices (indices into `positions`).
     MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices);
-    // A tree over every triangle of the mesh (items: triangle indices).
+    // A tree over every triangle of the mesh (items: triangle indices), leaves of up to
+    // kTriangleLeaf: the geometry stage walks it as its broad phase, where smaller leaves
+    // skip more triangles than they cost in nodes.
+    static constexpr uint32_t kTriangleLeaf = 4;
     static MeshTree overTriangles(const Mesh& mesh);
     bool empty() const { return order_.empty(); }
     size_t size() const { return order_.size(); }
@@ -67,7 +70,7 @@ private:
     // Median splits along the longest side of the items' centres: balanced, so that the
     // queries' stacks stay shallow. box(item, lo, hi) extends lo, hi by the item.
     template <class Box>
-    void build(const Box& box);
+    void build(const Box& box, uint32_t leafSize);
     std::vector<Node> nodes_;
     std::vector<uint32_t> order_;
 };
@@ -85,7 +88,7 @@ struct MeshVertexIndex {
     // Per group: the sum of its triangles' areas in mesh coordinates (m^2, rounded: a sum
     // in double, relative error below 1e-12 for any mesh the limits allow).
     std::vector<double> groupArea;
-    MeshTree triangles;                     // every triangle
+    MeshTree triangles;                     // every triangle (leaves of MeshTree::kTriangleLeaf)
     std::deque<VertexTree> trees;           // the storage behind the pointers
 };
 

@@ -42,43 +42,4 @@ BoxTree::BoxTree(const std::vector<Aabb>& boxes) {
     }
 }
 
-const BoxTree& MeshTreeCache::tree(const Mesh& mesh) {
-    Entry* e = nullptr;
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        std::unique_ptr<Entry>& slot = entries_[&mesh];
-        if (!slot) slot = std::make_unique<Entry>();
-        e = slot.get();
-    }
-    std::call_once(e->once, [&] {
-        std::vector<Aabb> boxes(mesh.triangles.size());
-        for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-            const auto& i = mesh.triangles[t];
-            const glm::dvec3 &a = mesh.positions[i[0]], &b = mesh.positions[i[1]], &c = mesh.positions[i[2]];
-            if (hasRepeatedVertex(a, b, c)) continue;  // left out: never a receiver
-            boxes[t].extend(a);
-            boxes[t].extend(b);
-            boxes[t].extend(c);
-        }
-        e->tree = BoxTree(boxes);
-    });
-    return e->tree;
-}
-
-void MeshTreeCache::keepOnly(const std::unordered_set<const Mesh*>& meshes) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    for (auto it = entries_.begin(); it != entries_.end();)
-        it = meshes.count(it->first) ? std::next(it) : entries_.erase(it);
-}
-
-void MeshTreeCache::forget(const std::unordered_set<const Mesh*>& meshes) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    for (const Mesh* m : meshes) entries_.erase(m);
-}
-
-size_t MeshTreeCache::size() const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return entries_.size();
-}
-
 }  // namespace shadowcull::geometry

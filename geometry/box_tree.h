@@ -1,6 +1,6 @@
 // A bounding-volume hierarchy over boxes, queried with a predicate on boxes: the
-// geometry stage's broad phase (one tree over a window's objects, one per unique mesh in
-// mesh coordinates, shared by its instances and kept across windows).
+// geometry stage's broad phase (one tree over a window's objects; a mesh's triangles are
+// walked in the mesh index's tree the same way: TriangleTree, below).
 //
 // Median splits on the longest axis of the centres (core/median_split.h), leaves of
 // kLeafSize. The predicate decides whether a subtree may hold an answer; it must be
@@ -10,15 +10,12 @@
 
 #include <atomic>
 #include <cstdint>
-#include <memory>
-#include <mutex>
-#include <unordered_map>
-#include <unordered_set>
 #include <vector>
 
 #include <tbb/parallel_invoke.h>
 
 #include "core/mesh.h"
+#include "core/mesh_index.h"
 #include "core/window.h"
 
 namespace shadowcull::geometry {
@@ -117,29 +114,85 @@ private:
     std::vector<Node> nodes_;
 };
 
-// A tree per mesh over its triangles with three distinct vertices (boxes in mesh
-// coordinates), built on first use and kept while windows hold the mesh. Thread-safe:
-// tasks of one window build different meshes' trees in parallel; a tree is built once.
-// Keyed by address: valid while every mesh lives as long as any window that holds it (the
-// whole bake today). A loader that frees meshes as windows slide (issue 16) must call
-// keepOnly() before a freed mesh's address can be reused, or key by something stabler.
-class MeshTreeCache {
+// A mesh's triangles as the broad phase walks them: the mesh index's triangle tree
+// (core/mesh_index.h, built once per mesh and freed with it: one tree per mesh for every
+// stage, where the geometry stage used to build a second one of its own, the largest part
+// of a dense world's first window), walked as BoxTree is. Triangles with a repeated vertex
+// are left out (never a receiver, nor a caster); an item's box is its three vertices' box,
+// in mesh coordinates.
+class TriangleTree {
 public:
-    // The tree of `mesh` (built now if needed). Valid until the next keepOnly().
-    const BoxTree& tree(const Mesh& mesh);
-    // Drops the trees of meshes not in `meshes` (called once per window, before any task).
-    void keepOnly(const std::unordered_set<const Mesh*>& meshes);
-    // Drops the trees of `meshes` (about to be freed).
-    void forget(const std::unordered_set<const Mesh*>& meshes);
-    size_t size() const;
+    explicit TriangleTree(const Mesh& mesh) : mesh_(mesh), tree_(vertexIndex(mesh).triangles) {}
+
+    // As BoxTree::visit: leaf(triangle) for every triangle whose box passes `mayHold` along
+    // with every node box above it, until leaf returns true (then returns true).
+    template <class Pred, class Leaf>
+    bool visit(const Pred& mayHold, const Leaf& leaf) const {
+        const std::vector<MeshTree::Node>& nodes = tree_.nodes();
+        const std::vector<uint32_t>& order = tree_.order();
+        if (nodes.empty()) return false;
+        int32_t stack[kMaxDepth];
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const MeshTree::Node& n = nodes[size_t(stack[--top])];
+            if (!mayHold(Aabb{n.lo, n.hi})) continue;
+            if (n.left < 0) {
+                for (uint32_t i = n.begin; i < n.end; ++i) {
+                    Aabb box;
+                    if (itemBox(order[i], box) && mayHold(box) && leaf(order[i])) return true;
+                }
+            } else {
+                stack[top++] = n.right;  // the left child is visited first
+                stack[top++] = n.left;
+            }
+        }
+        return false;
+    }
+
+    // As BoxTree::visitNodesOrdered: mayHold(box, items) on nodes only, leaf(triangle,
+    // position) with the triangle's position in depth-first order, in parallel over
+    // subtrees of at least `parallelAbove` triangles; subtrees wholly after `first` are
+    // skipped, every triangle before the first passing one is visited.
+    template <class Pred, class Leaf>
+    void visitNodesOrdered(const Pred& mayHold, const Leaf& leaf, const std::atomic<uint32_t>& first,
+                           uint32_t parallelAbove) const {
+        if (!tree_.nodes().empty()) walkOrdered(0, mayHold, leaf, first, parallelAbove);
+    }
 
 private:
-    struct Entry {
-        std::once_flag once;
-        BoxTree tree;
-    };
-    mutable std::mutex mutex_;
-    std::unordered_map<const Mesh*, std::unique_ptr<Entry>> entries_;
+    // False for a triangle with a repeated vertex (left out).
+    bool itemBox(uint32_t t, Aabb& box) const {
+        const auto& i = mesh_.triangles[t];
+        const glm::dvec3 &a = mesh_.positions[i[0]], &b = mesh_.positions[i[1]], &c = mesh_.positions[i[2]];
+        if (hasRepeatedVertex(a, b, c)) return false;
+        box.min = glm::min(a, glm::min(b, c));
+        box.max = glm::max(a, glm::max(b, c));
+        return true;
+    }
+    template <class Pred, class Leaf>
+    void walkOrdered(int32_t node, const Pred& mayHold, const Leaf& leaf, const std::atomic<uint32_t>& first,
+                     uint32_t parallelAbove) const {
+        const MeshTree::Node& n = tree_.nodes()[size_t(node)];
+        if (n.begin >= first.load(std::memory_order_relaxed) || !mayHold(Aabb{n.lo, n.hi}, n.end - n.begin)) return;
+        if (n.left < 0) {
+            const std::vector<uint32_t>& order = tree_.order();
+            for (uint32_t i = n.begin; i < n.end && i < first.load(std::memory_order_relaxed); ++i) {
+                const auto& t = mesh_.triangles[order[i]];
+                if (!hasRepeatedVertex(mesh_.positions[t[0]], mesh_.positions[t[1]], mesh_.positions[t[2]])) leaf(order[i], i);
+            }
+        } else if (n.end - n.begin >= parallelAbove) {
+            tbb::parallel_invoke([&] { walkOrdered(n.left, mayHold, leaf, first, parallelAbove); },
+                                 [&] { walkOrdered(n.right, mayHold, leaf, first, parallelAbove); });
+        } else {
+            walkOrdered(n.left, mayHold, leaf, first, parallelAbove);
+            walkOrdered(n.right, mayHold, leaf, first, parallelAbove);
+        }
+    }
+    // Median splits halve the triangles: the depth is about log2(n / 4) + 1.
+    static constexpr int kMaxDepth = 96;
+    const Mesh& mesh_;
+    const MeshTree& tree_;
 };
 
 }  // namespace shadowcull::geometry

@@ -256,7 +256,6 @@ std::string worldBox(const Aabb& b, const glm::dvec3& origin) { return worldPoin
 
 Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();
-    trees_.keepOnly(window.meshes());  // the trees of meshes the window has left
     candidates_.clear();
     std::mutex candidatesMutex;
     if (window.skippedObjects > 0) return Status::ok();  // an unloaded object might receive
@@ -399,7 +398,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                                 // Small meshes skip it (GeometryOptions::nodeTerrainRuleFrom).
                                                 const bool buriable = window.hasTerrain && o.kind != ChunkObject::Kind::Terrain &&
                                                                       o.mesh->triangles.size() >= options_.nodeTerrainRuleFrom;
-                                                return trees_.tree(*o.mesh).visit(
+                                                return TriangleTree(*o.mesh).visit(
                                                     [&](const Aabb& b) {
                                                         if (!mq.mayHold(b)) return false;
                                                         if (!buriable) return true;
@@ -445,7 +444,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                                              const WindowObject& o = window.objects[k];
                                              const Mesh& mesh = *o.mesh;
                                              const ShadowQuery::InMesh mq = q.inMesh(o.lsTransform);
-                                             return trees_.tree(mesh).visit([&](const Aabb& b) { return mq.mayHold(b); },
+                                             return TriangleTree(mesh).visit([&](const Aabb& b) { return mq.mayHold(b); },
                                                                             [&](uint32_t tri) {
                                                                                 if (mesh.groups[mesh.triangleGroup[tri]].alphaTested) return false;
                                                                                 out.push_back(o.lsTriangle(tri));
@@ -577,7 +576,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     // candidate (run ahead in parallel) are not counted, so the count is the
                     // same on any number of threads.
                     std::vector<std::pair<uint32_t, uint64_t>> testsAt;
-                    trees_.tree(cm).visitNodesOrdered(
+                    TriangleTree(cm).visitNodesOrdered(
                         [&](const Aabb& msBox, uint32_t items) {
                             // p lies within range and cone (semantics.md): a cluster wholly
                             // beyond holds no caster point that counts (exact; the margins

@@ -37,7 +37,6 @@ public:
     // Decides nothing for a window with skipped objects: an object that could not be
     // loaded might have been a receiver.
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
-    void forgetMeshes(const std::unordered_set<const Mesh*>& meshes) override { trees_.forget(meshes); }
 
     // The bits of the last window left undecided, each with a point (window-local) of the
     // candidate receiver its shadow volume reaches (above the ground where the terrain rule
@@ -49,12 +48,8 @@ public:
     };
     const std::vector<Candidate>& candidates() const { return candidates_; }
 
-    // Meshes whose trees are kept (for tests: the cache follows the window).
-    size_t cachedMeshTrees() const { return trees_.size(); }
-
 private:
     GeometryOptions options_;
-    MeshTreeCache trees_;  // per unique mesh, kept while windows hold it
     std::vector<Candidate> candidates_;
 };
 

@@ -17,7 +17,6 @@
 #include "core/chunk_writer.h"
 #include "core/results_file.h"
 #include "core/space_source.h"
-#include "geometry/box_tree.h"
 #include "raycast/group_samples.h"
 #include "tests/test_files.h"
 
@@ -319,13 +318,6 @@ TEST(LazyBake, CachesForgetTheMeshesThatGo) {
         m->triangleGroup = {0};
         m->groups.resize(1);
     }
-    geometry::MeshTreeCache trees;
-    (void)trees.tree(a);
-    (void)trees.tree(b);
-    ASSERT_EQ(trees.size(), 2u);
-    trees.forget({&a});
-    EXPECT_EQ(trees.size(), 1u);
-
     WindowObject oa, ob;
     oa.mesh = &a, ob.mesh = &b;
     raycast::GroupSampleCache samples(4, 4);

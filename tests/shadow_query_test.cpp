@@ -5,6 +5,7 @@
 // origin), and for the cluster filters, for directional and point lights, with and
 // without bias and dilation.
 
+#include <algorithm>
 #include <atomic>
 #include <mutex>
 #include <random>
@@ -140,22 +141,68 @@ TEST(BoxTree, OrderedParallelWalkFindsTheSequentialFirst) {
     }
 }
 
-TEST(MeshTreeCache, BuildsOnceAndFollowsTheWindow) {
-    Mesh a, b;
-    a.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
-    a.triangles = {{0, 1, 2}, {1, 3, 2}, {0, 0, 1}};  // the last has a repeated vertex: never a receiver
-    a.triangleGroup = {0, 0, 0};
-    b = a;
-    MeshTreeCache cache;
-    const BoxTree& ta = cache.tree(a);
-    EXPECT_EQ(ta.size(), 2u);
-    EXPECT_EQ(&cache.tree(a), &ta);  // built once
-    cache.tree(b);
-    EXPECT_EQ(cache.size(), 2u);
-    cache.keepOnly({&b});
-    EXPECT_EQ(cache.size(), 1u);
-    cache.keepOnly({});
-    EXPECT_EQ(cache.size(), 0u);
+// The geometry stage's walk of a mesh's triangles (the mesh index's tree): every triangle
+// with three distinct vertices whose box meets the query box, and only those, once each;
+// the ordered walk visits them in increasing positions, on any number of threads.
+TEST(TriangleTree, WalksEveryTriangleTheQueryMeetsAndLeavesOutRepeatedVertices) {
+    std::mt19937_64 rng(41);
+    std::uniform_real_distribution<double> u(-10.0, 10.0), small(-0.4, 0.4);
+    Mesh m;
+    for (int k = 0; k < 3000; ++k) {
+        const glm::dvec3 c(u(rng), u(rng), u(rng));
+        const uint32_t v = uint32_t(m.positions.size());
+        m.positions.push_back(c);
+        m.positions.push_back(c + glm::dvec3(small(rng), small(rng), small(rng)));
+        m.positions.push_back(c + glm::dvec3(small(rng), small(rng), small(rng)));
+        m.triangles.push_back(k % 11 == 5 ? std::array<uint32_t, 3>{v, v, v + 1} : std::array<uint32_t, 3>{v, v + 1, v + 2});
+        m.triangleGroup.push_back(0);
+    }
+    m.groups.resize(1);
+    const TriangleTree tree(m);
+    for (int q = 0; q < 20; ++q) {
+        const glm::dvec3 c(u(rng), u(rng), u(rng));
+        const Aabb query{c - glm::dvec3(3.0), c + glm::dvec3(3.0)};
+        auto meets = [&](const Aabb& b) {
+            return !(b.max.x < query.min.x || b.min.x > query.max.x || b.max.y < query.min.y || b.min.y > query.max.y ||
+                     b.max.z < query.min.z || b.min.z > query.max.z);
+        };
+        std::vector<uint32_t> expected;
+        for (uint32_t t = 0; t < m.triangles.size(); ++t) {
+            const auto& i = m.triangles[t];
+            if (hasRepeatedVertex(m.positions[i[0]], m.positions[i[1]], m.positions[i[2]])) continue;
+            Aabb b;
+            for (uint32_t v : i) b.extend(m.positions[v]);
+            if (meets(b)) expected.push_back(t);
+        }
+        std::vector<uint32_t> seen;
+        tree.visit(meets, [&](uint32_t t) {
+            seen.push_back(t);
+            return false;
+        });
+        std::sort(seen.begin(), seen.end());
+        EXPECT_EQ(seen, expected) << "query " << q;
+        // Ordered, in parallel: the same triangles (node boxes only), positions increasing
+        // along the tree's order.
+        std::mutex mutex;
+        std::vector<std::pair<uint32_t, uint32_t>> ordered;
+        const std::atomic<uint32_t> none{BoxTree::kNone};
+        tree.visitNodesOrdered([&](const Aabb& b, uint32_t) { return meets(b); },
+                               [&](uint32_t t, uint32_t position) {
+                                   const std::lock_guard<std::mutex> lock(mutex);
+                                   ordered.emplace_back(position, t);
+                               },
+                               none, 64);
+        std::sort(ordered.begin(), ordered.end());
+        for (size_t k = 1; k < ordered.size(); ++k) EXPECT_LT(ordered[k - 1].first, ordered[k].first);
+        std::vector<uint32_t> fromOrdered;
+        for (const auto& [position, t] : ordered) {
+            const auto& i = m.triangles[t];
+            EXPECT_FALSE(hasRepeatedVertex(m.positions[i[0]], m.positions[i[1]], m.positions[i[2]]));
+            fromOrdered.push_back(t);
+        }
+        std::sort(fromOrdered.begin(), fromOrdered.end());
+        for (uint32_t t : expected) EXPECT_TRUE(std::binary_search(fromOrdered.begin(), fromOrdered.end(), t)) << t;
+    }
 }
 
 // Every receiver the exact frustum reaches passes every broad-phase test of its caster
