@@ -329,7 +329,8 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
                 const std::optional<double> over = w.lsTerrainMaxOver(pLo.x, pLo.z, pHi.x, pHi.z);
                 return !(over && pLo.y > *over + margin);
             },
-            [&](uint32_t t) { crossing.push_back(t); });
+            [&](uint32_t t) { crossing.push_back(t); },
+            16);  // nodes of up to 16 triangles whole: the filter costs more than they do
         std::sort(crossing.begin(), crossing.end());
         // Per vertex, computed on first use (stamp == pass): placed, side, height over the level.
         thread_local std::vector<uint32_t> stamp;

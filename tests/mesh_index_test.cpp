@@ -2,6 +2,7 @@
 // give are, bit for bit, what the loops over every vertex or triangle corner give, on
 // turned, scaled, mirrored and far-off placements (100 km), dense jagged meshes included.
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -167,6 +168,34 @@ TEST(MeshIndex, AreaScaleBoundsHoldEveryPlacedTriangle) {
             EXPECT_LE(ls, hi * ms * (1 + 1e-9)) << "rep " << rep << " triangle " << k;
         }
     }
+}
+
+// Taking nodes of up to 16 triangles whole (the raycast stage's walks) visits every
+// triangle the finer walk visits, each once, and no triangle outside a node the filter
+// accepted whole: a superset bounded by the coarser leaves.
+TEST(MeshIndex, WholeNodesVisitASupersetOnce) {
+    std::mt19937 rng(31);
+    const Mesh mesh = jaggedSheet(60, rng);
+    const MeshTree& tree = vertexIndex(mesh).triangles;
+    std::uniform_real_distribution<double> u(-2.0, 2.0);
+    for (int q = 0; q < 30; ++q) {
+        const glm::dvec3 c(u(rng), 0.0, u(rng));
+        auto may = [&](const glm::dvec3& lo, const glm::dvec3& hi) {
+            return lo.x <= c.x + 0.3 && hi.x >= c.x - 0.3 && lo.z <= c.z + 0.3 && hi.z >= c.z - 0.3;
+        };
+        std::vector<uint32_t> fine, whole;
+        tree.forEach(may, [&](uint32_t t) { fine.push_back(t); });
+        tree.forEach(may, [&](uint32_t t) { whole.push_back(t); }, 16);
+        std::sort(fine.begin(), fine.end());
+        std::sort(whole.begin(), whole.end());
+        EXPECT_TRUE(std::adjacent_find(whole.begin(), whole.end()) == whole.end()) << "a triangle visited twice";
+        EXPECT_TRUE(std::includes(whole.begin(), whole.end(), fine.begin(), fine.end())) << "query " << q;
+        EXPECT_LE(whole.size(), fine.size() + 16 * (fine.size() / 1 + 1));
+        EXPECT_GT(fine.size(), 0u);
+    }
+    std::vector<uint32_t> all;
+    tree.forEach([](const glm::dvec3&, const glm::dvec3&) { return true; }, [&](uint32_t t) { all.push_back(t); }, 16);
+    EXPECT_EQ(all.size(), mesh.triangles.size());
 }
 
 TEST(MeshIndex, NodeBoundsHoldEveryVertex) {
