@@ -66,6 +66,7 @@ std::string vmFlagsAt(const void* p) {
 // microseconds in a VM: world D's bake spent a quarter of its CPU time in them).
 TEST(HeapTuning, TheHeapsAreAdvisedForHugePages) {
 #if defined(__GLIBC__)
+    if (!std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled")) GTEST_SKIP() << "a kernel without transparent huge pages";
     tuneHeapForLongBakes();
     void* main = std::malloc(1 << 20);
     void* other = nullptr;
