@@ -1,8 +1,5 @@
 #include "geometry/box_tree.h"
 
-#include <algorithm>
-#include <atomic>
-
 #include "core/median_split.h"
 
 namespace shadowcull::geometry {
@@ -27,11 +24,9 @@ BoxTree::BoxTree(const std::vector<Aabb>& boxes) {
     for (size_t k = split.size(); k-- > 0;) {
         const SplitNode& s = split[k];
         Node& n = nodes_[k];
-        n.items = s.end - s.begin;
-        n.begin = s.begin;
         if (s.left < 0) {
             n.first = s.begin;
-            n.count = n.items;
+            n.count = s.end - s.begin;
             for (uint32_t i = s.begin; i < s.end; ++i) n.box.extend(items_[i].box);
         } else {
             n.first = uint32_t(s.left);

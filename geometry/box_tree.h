@@ -30,64 +30,16 @@ public:
     // the nodes above it, until leaf returns true (then returns true: stopped early).
     template <class Pred, class Leaf>
     bool visit(const Pred& mayHold, const Leaf& leaf) const {
-        return walk<true>(mayHold, leaf);
-    }
-    // As visit(), but `mayHold(box, items)` is asked about nodes only (not each item's own
-    // box), with the number of items under the node.
-    template <class Pred, class Leaf>
-    bool visitNodes(const Pred& mayHold, const Leaf& leaf) const {
-        return walk<false>(mayHold, leaf);
-    }
-    static constexpr uint32_t kNone = 0xffffffffu;
-    // As visitNodes, in parallel over subtrees of at least `parallelAbove` items (TBB), for a
-    // search that wants the first item in depth-first order that passes: leaf(index,
-    // position) gets the item's position in that order and returns nothing; the caller
-    // lowers `first` (atomically) when an item passes, and subtrees wholly after `first`
-    // are skipped. Whatever the threads, every item before the first passing one is visited.
-    template <class Pred, class Leaf>
-    void visitNodesOrdered(const Pred& mayHold, const Leaf& leaf, const std::atomic<uint32_t>& first,
-                           uint32_t parallelAbove) const {
-        if (!nodes_.empty()) walkOrdered(0, mayHold, leaf, first, parallelAbove);
-    }
-    size_t size() const { return items_.size(); }
-
-private:
-    template <class Pred, class Leaf>
-    void walkOrdered(uint32_t node, const Pred& mayHold, const Leaf& leaf, const std::atomic<uint32_t>& first,
-                     uint32_t parallelAbove) const {
-        const Node& n = nodes_[node];
-        if (n.begin >= first.load(std::memory_order_relaxed) || !mayHold(n.box, n.items)) return;
-        if (n.count > 0) {
-            for (uint32_t i = n.first; i < n.first + n.count && i < first.load(std::memory_order_relaxed); ++i)
-                leaf(items_[i].index, i);
-        } else if (n.items >= parallelAbove) {
-            tbb::parallel_invoke([&] { walkOrdered(n.first, mayHold, leaf, first, parallelAbove); },
-                                 [&] { walkOrdered(n.first + 1, mayHold, leaf, first, parallelAbove); });
-        } else {
-            walkOrdered(n.first, mayHold, leaf, first, parallelAbove);
-            walkOrdered(n.first + 1, mayHold, leaf, first, parallelAbove);
-        }
-    }
-    template <bool kTestItems, class Pred, class Leaf>
-    bool walk(const Pred& mayHold, const Leaf& leaf) const {
         if (nodes_.empty()) return false;
         uint32_t stack[kMaxDepth];
         int top = 0;
         stack[top++] = 0;
         while (top > 0) {
             const Node& n = nodes_[stack[--top]];
-            if constexpr (kTestItems) {
-                if (!mayHold(n.box)) continue;
-            } else {
-                if (!mayHold(n.box, n.items)) continue;
-            }
+            if (!mayHold(n.box)) continue;
             if (n.count > 0) {
                 for (uint32_t i = n.first; i < n.first + n.count; ++i)
-                    if constexpr (kTestItems) {
-                        if (mayHold(items_[i].box) && leaf(items_[i].index)) return true;
-                    } else {
-                        if (leaf(items_[i].index)) return true;
-                    }
+                    if (mayHold(items_[i].box) && leaf(items_[i].index)) return true;
             } else {
                 stack[top++] = n.first + 1;  // the left child is visited first
                 stack[top++] = n.first;
@@ -95,12 +47,13 @@ private:
         }
         return false;
     }
+    size_t size() const { return items_.size(); }
+
+private:
     struct Node {
         Aabb box;
         uint32_t first = 0;  // leaf: first index into items_; inner: index of the left child
         uint32_t count = 0;  // leaf: items; inner: 0
-        uint32_t items = 0;  // items under the node
-        uint32_t begin = 0;  // position (in items_) of its first item: items are leaf by leaf
     };
     struct Item {
         Aabb box;
@@ -124,8 +77,9 @@ class TriangleTree {
 public:
     explicit TriangleTree(const Mesh& mesh) : mesh_(mesh), tree_(vertexIndex(mesh).triangles) {}
 
-    // As BoxTree::visit: leaf(triangle) for every triangle whose box passes `mayHold` along
-    // with every node box above it, until leaf returns true (then returns true).
+    // leaf(triangle) for every triangle whose box passes `mayHold` along with every node box
+    // above it, until leaf returns true (then returns true: stopped early). Depth first,
+    // left child first.
     template <class Pred, class Leaf>
     bool visit(const Pred& mayHold, const Leaf& leaf) const {
         const std::vector<MeshTree::Node>& nodes = tree_.nodes();
@@ -150,10 +104,14 @@ public:
         return false;
     }
 
-    // As BoxTree::visitNodesOrdered: mayHold(box, items) on nodes only, leaf(triangle,
-    // position) with the triangle's position in depth-first order, in parallel over
-    // subtrees of at least `parallelAbove` triangles; subtrees wholly after `first` are
-    // skipped, every triangle before the first passing one is visited.
+    static constexpr uint32_t kNone = 0xffffffffu;
+    // For a search that wants the first triangle in depth-first order (visit's order) that
+    // passes: mayHold(box, items) is asked about nodes only, with the number of triangles
+    // under the node; leaf(triangle, position) gets the triangle's position in that order
+    // and returns nothing; the caller lowers `first` (atomically) when a triangle passes.
+    // In parallel over subtrees of at least `parallelAbove` triangles (TBB); subtrees
+    // wholly after `first` are skipped. Whatever the threads, every triangle before the
+    // first passing one is visited, once.
     template <class Pred, class Leaf>
     void visitNodesOrdered(const Pred& mayHold, const Leaf& leaf, const std::atomic<uint32_t>& first,
                            uint32_t parallelAbove) const {
@@ -161,11 +119,16 @@ public:
     }
 
 private:
-    // False for a triangle with a repeated vertex (left out).
+    // A triangle with a repeated vertex is left out.
+    bool leftOut(uint32_t t) const {
+        const auto& i = mesh_.triangles[t];
+        return hasRepeatedVertex(mesh_.positions[i[0]], mesh_.positions[i[1]], mesh_.positions[i[2]]);
+    }
+    // False for a triangle left out.
     bool itemBox(uint32_t t, Aabb& box) const {
+        if (leftOut(t)) return false;
         const auto& i = mesh_.triangles[t];
         const glm::dvec3 &a = mesh_.positions[i[0]], &b = mesh_.positions[i[1]], &c = mesh_.positions[i[2]];
-        if (hasRepeatedVertex(a, b, c)) return false;
         box.min = glm::min(a, glm::min(b, c));
         box.max = glm::max(a, glm::max(b, c));
         return true;
@@ -177,10 +140,8 @@ private:
         if (n.begin >= first.load(std::memory_order_relaxed) || !mayHold(Aabb{n.lo, n.hi}, n.end - n.begin)) return;
         if (n.left < 0) {
             const std::vector<uint32_t>& order = tree_.order();
-            for (uint32_t i = n.begin; i < n.end && i < first.load(std::memory_order_relaxed); ++i) {
-                const auto& t = mesh_.triangles[order[i]];
-                if (!hasRepeatedVertex(mesh_.positions[t[0]], mesh_.positions[t[1]], mesh_.positions[t[2]])) leaf(order[i], i);
-            }
+            for (uint32_t i = n.begin; i < n.end && i < first.load(std::memory_order_relaxed); ++i)
+                if (!leftOut(order[i])) leaf(order[i], i);
         } else if (n.end - n.begin >= parallelAbove) {
             tbb::parallel_invoke([&] { walkOrdered(n.left, mayHold, leaf, first, parallelAbove); },
                                  [&] { walkOrdered(n.right, mayHold, leaf, first, parallelAbove); });

@@ -570,7 +570,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     // otherwise hold one core); the candidate kept is the first in the tree's
                     // order, as a sequential walk finds it, so notes do not depend on threads.
                     const Mesh& cm = *wo.mesh;
-                    std::atomic<uint32_t> first{BoxTree::kNone};
+                    std::atomic<uint32_t> first{TriangleTree::kNone};
                     std::mutex firstMutex;
                     // Exact tests per caster triangle that made any: those after the first
                     // candidate (run ahead in parallel) are not counted, so the count is the
@@ -615,7 +615,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                             }
                         },
                         first, kParallelCasters);
-                    candidate = first.load() != BoxTree::kNone;
+                    candidate = first.load() != TriangleTree::kNone;
                     for (const auto& [position, n] : testsAt)
                         if (position <= first.load()) tested += n;
                 } else {

@@ -90,52 +90,53 @@ TEST(BoxTree, VisitsExactlyTheOverlappingItems) {
     }
 }
 
-// The parallel ordered walk finds the same first passing item as the sequential walk, and
-// visits every item before it (the stage's notes and proofs rest on both).
-TEST(BoxTree, OrderedParallelWalkFindsTheSequentialFirst) {
+// The parallel ordered walk finds the same first passing triangle as the sequential walk,
+// and visits every triangle before it once (the stage's notes and proofs rest on both).
+TEST(TriangleTree, OrderedParallelWalkFindsTheSequentialFirst) {
     std::mt19937_64 rng(11);
-    std::uniform_real_distribution<double> u(0.0, 100.0);
-    std::vector<Aabb> boxes(20000);
-    for (Aabb& b : boxes) {
+    std::uniform_real_distribution<double> u(0.0, 100.0), small(-0.5, 0.5);
+    Mesh m;
+    for (uint32_t k = 0; k < 20000; ++k) {
         const glm::dvec3 c(u(rng), u(rng), u(rng));
-        b.min = c - glm::dvec3(0.5);
-        b.max = c + glm::dvec3(0.5);
+        for (int v = 0; v < 3; ++v) m.positions.push_back(c + glm::dvec3(small(rng), small(rng), small(rng)));
+        m.triangles.push_back({3 * k, 3 * k + 1, 3 * k + 2});
+        m.triangleGroup.push_back(0);
     }
-    const BoxTree tree(boxes);
+    m.groups.resize(1);
+    const TriangleTree tree(m);
+    auto all = [](const Aabb&) { return true; };
     for (int trial = 0; trial < 30; ++trial) {
-        std::vector<char> passes(boxes.size());
-        const int rate = 1 + trial * 97;  // from every item to very few
+        std::vector<char> passes(m.triangles.size());
+        const int rate = 1 + trial * 97;  // from every triangle to very few
         for (char& p : passes) p = rng() % uint64_t(rate) == 0;
-        auto all = [](const Aabb&, uint32_t) { return true; };
-        uint32_t sequentialFirst = BoxTree::kNone;  // the item visitNodes stops at
-        tree.visitNodes(all, [&](uint32_t k) {
-            if (!passes[k]) return false;
-            sequentialFirst = k;
+        uint32_t sequentialFirst = TriangleTree::kNone;  // the triangle visit stops at
+        tree.visit(all, [&](uint32_t t) {
+            if (!passes[t]) return false;
+            sequentialFirst = t;
             return true;
         });
-        std::atomic<uint32_t> first{BoxTree::kNone};
-        std::mutex m;
-        uint32_t firstItem = BoxTree::kNone;
-        std::vector<std::atomic<int>> seen(boxes.size());
-        tree.visitNodesOrdered(
-            all,
-            [&](uint32_t k, uint32_t position) {
-                seen[k].fetch_add(1);
-                if (!passes[k]) return;
-                const std::lock_guard<std::mutex> lock(m);
-                if (position < first.load()) {
-                    first.store(position);
-                    firstItem = k;
-                }
-            },
-            first, 64);
-        ASSERT_EQ(firstItem, sequentialFirst) << "trial " << trial;
-        // Every item the sequential walk visited before stopping was visited once.
+        std::atomic<uint32_t> first{TriangleTree::kNone};
+        std::mutex mutex;
+        uint32_t firstTriangle = TriangleTree::kNone;
+        std::vector<std::atomic<int>> seen(m.triangles.size());
+        tree.visitNodesOrdered([](const Aabb&, uint32_t) { return true; },
+                               [&](uint32_t t, uint32_t position) {
+                                   seen[t].fetch_add(1);
+                                   if (!passes[t]) return;
+                                   const std::lock_guard<std::mutex> lock(mutex);
+                                   if (position < first.load()) {
+                                       first.store(position);
+                                       firstTriangle = t;
+                                   }
+                               },
+                               first, 64);
+        ASSERT_EQ(firstTriangle, sequentialFirst) << "trial " << trial;
+        // Every triangle the sequential walk visited before stopping was visited once.
         bool reached = false;
-        tree.visitNodes(all, [&](uint32_t k) {
-            if (k == sequentialFirst) reached = true;
+        tree.visit(all, [&](uint32_t t) {
+            if (t == sequentialFirst) reached = true;
             if (reached) return true;
-            EXPECT_EQ(seen[k].load(), 1) << "item " << k;
+            EXPECT_EQ(seen[t].load(), 1) << "triangle " << t;
             return false;
         });
     }
@@ -185,7 +186,7 @@ TEST(TriangleTree, WalksEveryTriangleTheQueryMeetsAndLeavesOutRepeatedVertices) 
         // along the tree's order.
         std::mutex mutex;
         std::vector<std::pair<uint32_t, uint32_t>> ordered;
-        const std::atomic<uint32_t> none{BoxTree::kNone};
+        const std::atomic<uint32_t> none{TriangleTree::kNone};
         tree.visitNodesOrdered([&](const Aabb& b, uint32_t) { return meets(b); },
                                [&](uint32_t t, uint32_t position) {
                                    const std::lock_guard<std::mutex> lock(mutex);
