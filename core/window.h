@@ -141,5 +141,10 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
 inline bool hasRepeatedVertex(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
     return a == b || b == c || a == c;
 }
+// The same test on triangle `t` of the mesh (mesh coordinates).
+inline bool hasRepeatedVertex(const Mesh& mesh, size_t t) {
+    const auto& i = mesh.triangles[t];
+    return hasRepeatedVertex(mesh.positions[i[0]], mesh.positions[i[1]], mesh.positions[i[2]]);
+}
 
 }  // namespace shadowcull

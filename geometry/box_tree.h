@@ -119,14 +119,9 @@ public:
     }
 
 private:
-    // A triangle with a repeated vertex is left out.
-    bool leftOut(uint32_t t) const {
-        const auto& i = mesh_.triangles[t];
-        return hasRepeatedVertex(mesh_.positions[i[0]], mesh_.positions[i[1]], mesh_.positions[i[2]]);
-    }
-    // False for a triangle left out.
+    // False for a triangle left out (a repeated vertex).
     bool itemBox(uint32_t t, Aabb& box) const {
-        if (leftOut(t)) return false;
+        if (hasRepeatedVertex(mesh_, t)) return false;
         const auto& i = mesh_.triangles[t];
         const glm::dvec3 &a = mesh_.positions[i[0]], &b = mesh_.positions[i[1]], &c = mesh_.positions[i[2]];
         box.min = glm::min(a, glm::min(b, c));
@@ -141,7 +136,7 @@ private:
         if (n.left < 0) {
             const std::vector<uint32_t>& order = tree_.order();
             for (uint32_t i = n.begin; i < n.end && i < first.load(std::memory_order_relaxed); ++i)
-                if (!leftOut(order[i])) leaf(order[i], i);
+                if (!hasRepeatedVertex(mesh_, order[i])) leaf(order[i], i);
         } else if (n.end - n.begin >= parallelAbove) {
             tbb::parallel_invoke([&] { walkOrdered(n.left, mayHold, leaf, first, parallelAbove); },
                                  [&] { walkOrdered(n.right, mayHold, leaf, first, parallelAbove); });

@@ -345,9 +345,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
             auto forCasterTriangles = [&](const auto& f) {
                 for (size_t t = 0; t < wo.mesh->triangles.size(); ++t) {
                     if (wo.mesh->triangleGroup[t] != uint32_t(task.group)) continue;
-                    const auto& i = wo.mesh->triangles[t];
-                    const glm::dvec3 &a = wo.mesh->positions[i[0]], &b = wo.mesh->positions[i[1]], &c = wo.mesh->positions[i[2]];
-                    if (!hasRepeatedVertex(a, b, c) && f(wo.lsTriangle(t))) return;
+                    if (!hasRepeatedVertex(*wo.mesh, t) && f(wo.lsTriangle(t))) return;
                 }
             };
             for (int l = 0; l < cv.lightCount; ++l) {
@@ -552,8 +550,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     for (uint32_t k = 0; k < window.objects.size() && !candidate; ++k) {
                         const Mesh& m = *window.objects[k].mesh;
                         for (uint32_t tri = 0; tri < m.triangles.size(); ++tri) {
-                            const auto& i = m.triangles[tri];
-                            if (!hasRepeatedVertex(m.positions[i[0]], m.positions[i[1]], m.positions[i[2]]) && test(k, tri)) break;
+                            if (!hasRepeatedVertex(m, tri) && test(k, tri)) break;
                         }
                     }
                     return candidate;

@@ -152,12 +152,10 @@ const WindowTriangles::Object& WindowTriangles::object(size_t k) const {
         out.positions.reserve(o.mesh->positions.size());
         for (const glm::dvec3& p : o.mesh->positions) out.positions.push_back(o.lsTransform.apply(p));
         for (size_t t = 0; t < o.mesh->triangles.size(); ++t) {
-            const auto& tri = o.mesh->triangles[t];
             // Same test as everywhere in the project: a repeated vertex (in mesh coordinates).
-            if (hasRepeatedVertex(o.mesh->positions[tri[0]], o.mesh->positions[tri[1]], o.mesh->positions[tri[2]]))
-                continue;
+            if (hasRepeatedVertex(*o.mesh, t)) continue;
             out.triangles.push_back(uint32_t(t));
-            for (uint32_t v : tri) out.lsBounds.extend(out.positions[v]);
+            for (uint32_t v : o.mesh->triangles[t]) out.lsBounds.extend(out.positions[v]);
         }
     });
     return objects_[k];

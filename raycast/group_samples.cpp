@@ -89,10 +89,7 @@ std::vector<glm::dvec3> samplePoints(const Mesh& mesh, const std::vector<uint32_
 }
 
 // Triangle `t` of the mesh has three distinct vertices (else no area, no samples).
-bool sampled(const Mesh& mesh, uint32_t t) {
-    const auto& i = mesh.triangles[t];
-    return !hasRepeatedVertex(mesh.positions[i[0]], mesh.positions[i[1]], mesh.positions[i[2]]);
-}
+bool sampled(const Mesh& mesh, uint32_t t) { return !hasRepeatedVertex(mesh, t); }
 
 }  // namespace
 
