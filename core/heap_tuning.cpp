@@ -36,14 +36,25 @@ std::atomic<bool> adviseHeaps{false};
 constexpr uintptr_t kArenaHeap = uintptr_t(64) << 20;
 
 // The ranges advised so far (a range seen again is not advised again), and the lock of a
-// scan. Never destroyed: the watcher thread may scan while the process exits.
+// scan, of the process `pid`. Never destroyed: the watcher thread may scan while the
+// process exits. A forked child makes its own (its parent's watcher may have held the
+// lock at the fork, and is not in the child to release it).
 struct AdviceState {
+    pid_t pid = 0;
     std::mutex mutex;
     std::set<std::pair<uintptr_t, uintptr_t>> advised;
 };
 AdviceState& adviceState() {
-    static AdviceState* state = new AdviceState;
-    return *state;
+    static std::atomic<AdviceState*> state{nullptr};
+    AdviceState* s = state.load(std::memory_order_acquire);
+    const pid_t pid = ::getpid();
+    if (!s || s->pid != pid) {
+        auto* fresh = new AdviceState;
+        fresh->pid = pid;
+        if (state.compare_exchange_strong(s, fresh, std::memory_order_acq_rel)) s = fresh;
+        else delete fresh;  // another thread of this process made it first: `s` is now its state
+    }
+    return *s;
 }
 
 // Advises [lo, hi) unless it was; true when it was new.
@@ -115,8 +126,10 @@ void tuneHeapForLongBakes() {
     // A heap appears, or grows, whenever a thread's allocations need it: a watcher advises
     // new ones within a few milliseconds (every 4 ms while they keep coming, backing off to
     // every 64 ms while none do; a scan costs ~0.1 ms). Until then their pages stay small.
-    static std::once_flag watcher;
-    std::call_once(watcher, [] {
+    // One per process: a forked child (bake_bench's jobs) has none of its parent's threads,
+    // so calling this again there starts its own.
+    static std::atomic<pid_t> watcherOf{0};
+    if (watcherOf.exchange(::getpid()) != ::getpid()) {
         std::thread([] {
             auto period = std::chrono::milliseconds(4);
             for (;;) {
@@ -125,7 +138,7 @@ void tuneHeapForLongBakes() {
                                               : std::min(2 * period, std::chrono::milliseconds(64));
             }
         }).detach();
-    });
+    }
     constexpr int kKeep = 256 << 20;
     mallopt(M_TRIM_THRESHOLD, kKeep);
     mallopt(M_TOP_PAD, kKeep);

@@ -28,7 +28,8 @@
 namespace shadowcull {
 
 // Sets the heap up for a long bake (above), advises its heaps for huge pages and starts
-// the watcher that advises those to come. Once per process matters; later calls repeat it.
+// the watcher that advises those to come. Once per process matters; later calls repeat it
+// (a forked child calls it again: the watcher is a thread, and a fork copies none).
 void tuneHeapForLongBakes();
 
 // Advises glibc's heaps as they are now for transparent huge pages (a part already advised

@@ -16,10 +16,7 @@ namespace {
 // Subtrees with fewer items are built on the calling thread.
 constexpr uint32_t kParallelFrom = 1u << 14;
 
-struct Entry {
-    glm::dvec3 centre;
-    uint32_t item;
-};
+using Entry = SplitEntry;
 
 class Splitter {
 public:
@@ -81,21 +78,26 @@ private:
 
 }  // namespace
 
-std::vector<SplitNode> medianSplit(std::vector<uint32_t>& order, const std::vector<glm::dvec3>& centres, uint32_t leafSize) {
+std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize) {
     std::vector<SplitNode> nodes;
-    if (order.empty()) return nodes;
+    if (entries.empty()) return nodes;
     leafSize = std::max(leafSize, 1u);
-    std::vector<Entry> entries(order.size());
-    for (size_t k = 0; k < order.size(); ++k) entries[k] = {centres[order[k]], order[k]};
     Splitter s(entries, nodes, leafSize);
-    nodes.resize(s.subtreeNodes(uint32_t(order.size())));
-    if (order.size() >= kParallelFrom) {
+    nodes.resize(s.subtreeNodes(uint32_t(entries.size())));
+    if (entries.size() >= kParallelFrom) {
         tbb::task_group group;
-        s.build(0, 0, uint32_t(order.size()), 1, &group);
+        s.build(0, 0, uint32_t(entries.size()), 1, &group);
         group.wait();
     } else {
-        s.build(0, 0, uint32_t(order.size()), 1, nullptr);
+        s.build(0, 0, uint32_t(entries.size()), 1, nullptr);
     }
+    return nodes;
+}
+
+std::vector<SplitNode> medianSplit(std::vector<uint32_t>& order, const std::vector<glm::dvec3>& centres, uint32_t leafSize) {
+    std::vector<SplitEntry> entries(order.size());
+    for (size_t k = 0; k < order.size(); ++k) entries[k] = {centres[order[k]], order[k]};
+    std::vector<SplitNode> nodes = medianSplit(entries, leafSize);
     for (size_t k = 0; k < order.size(); ++k) order[k] = entries[k].item;
     return nodes;
 }

@@ -20,6 +20,16 @@ struct SplitNode {
     int32_t left = -1;            // inner: the left child's index (the right one's is left + 1); leaf: -1
 };
 
+// An item and the centre it is split by.
+struct SplitEntry {
+    glm::dvec3 centre;
+    uint32_t item;
+};
+
+// Permutes `entries` leaf by leaf and returns the nodes, as below (for callers that have
+// no array of centres by item: one array fewer, the size of a dense mesh's triangles).
+std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize);
+
 // Permutes `order` (item indices; centres[item] is the item's centre) leaf by leaf and
 // returns the nodes: the root first, every child after its parent (a pass from the last
 // node back computes children before parents), siblings side by side.

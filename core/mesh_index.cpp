@@ -25,17 +25,16 @@ constexpr uint32_t kVertexLeaf = 16;
 template <class Box>
 void MeshTree::build(const Box& box, uint32_t leafSize) {
     if (order_.empty()) return;
-    // Each item's box centre, for the splits (by item index: the order is permuted).
-    std::vector<glm::dvec3> centre;
-    uint32_t maxItem = 0;
-    for (uint32_t i : order_) maxItem = std::max(maxItem, i);
-    centre.resize(size_t(maxItem) + 1);
-    for (uint32_t i : order_) {
+    // Each item's box centre, for the splits.
+    std::vector<SplitEntry> entries(order_.size());
+    for (size_t k = 0; k < order_.size(); ++k) {
         glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-        box(i, lo, hi);
-        centre[i] = 0.5 * (lo + hi);
+        box(order_[k], lo, hi);
+        entries[k] = {0.5 * (lo + hi), order_[k]};
     }
-    const std::vector<SplitNode> split = medianSplit(order_, centre, leafSize);
+    const std::vector<SplitNode> split = medianSplit(entries, leafSize);
+    for (size_t k = 0; k < order_.size(); ++k) order_[k] = entries[k].item;
+    std::vector<SplitEntry>().swap(entries);  // freed before the nodes are made
     // Boxes bottom up: a leaf's from its items, an inner node's from its children (min and
     // max are exact, so each is the exact box of its items' vertices).
     nodes_.resize(split.size());
@@ -95,16 +94,21 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
         trees.push_back(&index->trees.back());
         return trees.back();
     };
-    // The vertices of `triangles` (indices into m.triangles), sorted, once each.
+    // The vertices of `triangles` (indices into m.triangles), sorted, once each: marked,
+    // then gathered in index order (no sort: a dense mesh's lists were three sorts of
+    // 90,000 indices).
     std::vector<uint32_t> stamp(nv, 0);
     uint32_t pass = 0;
     auto verticesOf = [&](const std::vector<uint32_t>& triangles) {
         ++pass;
-        std::vector<uint32_t> out;
+        size_t count = 0;
         for (uint32_t t : triangles)
             for (uint32_t v : m.triangles[t])
-                if (stamp[v] != pass) stamp[v] = pass, out.push_back(v);
-        std::sort(out.begin(), out.end());
+                if (stamp[v] != pass) stamp[v] = pass, ++count;
+        std::vector<uint32_t> out;
+        out.reserve(count);
+        for (uint32_t v = 0; v < nv && out.size() < count; ++v)
+            if (stamp[v] == pass) out.push_back(v);
         return out;
     };
     std::vector<uint32_t> all;

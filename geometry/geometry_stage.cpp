@@ -365,9 +365,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 // A mesh-tree node's box placed in the window: its corners mapped, widened by
                 // the margin (far above the rounding of the placed triangles' vertices).
                 auto placedBox = [&](const WindowObject& o, const Aabb& msBox) {
-                    Aabb ls;
-                    for (const glm::dvec3& p : placedCorners(msBox, o.lsTransform)) ls.extend(p);
-                    return grown(ls, margin);  // the placed triangles' rounding, far inside
+                    return grown(placedBounds(msBox, o.lsTransform), margin);  // the placed triangles' rounding, far inside
                 };
                 // Caster parts no point of which is within the light's range and cone hold no p
                 // (semantics.md, condition 3): a mesh-tree node by its placed box, a triangle

@@ -79,12 +79,4 @@ MeshTree::MeshTree(const Mesh& mesh) {
     }
 }
 
-Aabb placedBounds(const Aabb& box, const RowTransform& transform) {
-    Aabb out;
-    for (const glm::dvec3& p : placedCorners(box, transform)) out.extend(p);
-    const glm::dvec3 mag = glm::max(glm::abs(out.min), glm::abs(out.max));
-    const double pad = 1e-9 * (std::max({mag.x, mag.y, mag.z}) + glm::length(out.max - out.min)) + 1e-12;
-    return {out.min - glm::dvec3(pad), out.max + glm::dvec3(pad)};
-}
-
 }  // namespace shadowcull::gpu

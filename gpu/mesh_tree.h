@@ -71,11 +71,7 @@ private:
 };
 
 // (placedCorners, core/window.h: the corners of a mesh-coordinate box placed in the window;
-// their convex hull holds the placed box, so every placed point of the box.)
-
-// The axis-aligned window-local box of a placed mesh-coordinate box, widened by the rounding
-// of the transform (1e-9 of the coordinates' size): it holds every placed vertex of the box
-// as RowTransform::apply computes it.
-Aabb placedBounds(const Aabb& box, const RowTransform& transform);
+// their convex hull holds the placed box, so every placed point of the box. placedBounds,
+// core/window.h: the axis-aligned box of those, rounding included.)
 
 }  // namespace shadowcull::gpu

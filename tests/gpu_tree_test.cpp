@@ -108,7 +108,7 @@ TEST(GpuMeshTree, PlacedBoxesHoldThePlacedVertices) {
         tree.visit(
             [&](const Aabb& box) {
                 // Every vertex in the node's box, placed as the stages place it.
-                const Aabb placed = gpu::placedBounds(box, T);
+                const Aabb placed = placedBounds(box, T);
                 for (const glm::dvec3& v : m.positions) {
                     if (v.x < box.min.x || v.y < box.min.y || v.z < box.min.z || v.x > box.max.x || v.y > box.max.y ||
                         v.z > box.max.z)

@@ -7,6 +7,8 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -80,6 +82,58 @@ TEST(HeapTuning, TheHeapsAreAdvisedForHugePages) {
     EXPECT_NE(otherFlags.find(" hg"), std::string::npos) << otherFlags;
     std::free(main);
     std::free(other);
+#else
+    GTEST_SKIP() << "glibc only";
+#endif
+}
+
+// A forked child (bake_bench runs each bake in one) watches its own heaps once it calls
+// tuneHeapForLongBakes again: a fork copies no thread, so the parent's watcher is not there
+// to advise a heap the child's threads make (and may have held its lock at the fork). The
+// child's second thread allocates until it holds a block in a mapping the child did not
+// have at the start (a heap of its own), then waits for the watcher alone to advise it.
+TEST(HeapTuning, AForkedChildWatchesItsOwnHeaps) {
+#if defined(__GLIBC__)
+    if (!std::ifstream("/sys/kernel/mm/transparent_hugepage/enabled")) GTEST_SKIP() << "a kernel without transparent huge pages";
+    tuneHeapForLongBakes();
+    std::fflush(stdout);
+    std::fflush(stderr);
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        alarm(20);  // a child stuck on its parent's lock fails instead of hanging the suite
+        tuneHeapForLongBakes();
+        std::ifstream maps("/proc/self/maps");
+        std::vector<std::pair<uintptr_t, uintptr_t>> before;
+        for (std::string line; std::getline(maps, line);) {
+            uintptr_t lo = 0, hi = 0;
+            char dash = 0;
+            std::istringstream(line) >> std::hex >> lo >> dash >> hi;
+            before.emplace_back(lo, hi);
+        }
+        auto isNew = [&](const void* p) {
+            const uintptr_t at = reinterpret_cast<uintptr_t>(p);
+            for (const auto& [lo, hi] : before)
+                if (lo <= at && at < hi) return false;
+            return true;
+        };
+        void* fresh = nullptr;
+        std::thread t([&] {
+            for (int k = 0; k < 512 && !fresh; ++k) {  // up to 512 MiB of address space, untouched
+                void* p = std::malloc(1 << 20);
+                if (p && isNew(p)) fresh = p;
+            }
+        });
+        t.join();
+        if (!fresh) _exit(3);
+        std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the watcher's period is at most 64 ms
+        _exit(vmFlagsAt(fresh).find(" hg") != std::string::npos ? 0 : 4);
+    }
+    int status = 0;
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(WIFEXITED(status)) << "the child did not exit (status " << status << ")";
+    EXPECT_NE(WEXITSTATUS(status), 3) << "the child's thread got no block in a new mapping";
+    EXPECT_EQ(WEXITSTATUS(status), 0) << "the child's new heap was not advised";
 #else
     GTEST_SKIP() << "glibc only";
 #endif

@@ -122,6 +122,39 @@ TEST(MeshIndex, PlacedBoxesAreTheLoopsBitForBit) {
     }
 }
 
+// placedBounds (core/window.h) holds every corner of the box as placedCorners places it
+// and as placed exactly (long double, from the corner's own coordinates), and is that
+// corners' box within a relative 1e-9: tiny to huge boxes, turned, per-axis scaled and
+// mirrored placements, near the origin and 100 km out.
+TEST(MeshIndex, PlacedBoundsHoldThePlacedCornersTightly) {
+    std::mt19937 rng(31);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0), exponent(-3.0, 2.0);
+    for (int rep = 0; rep < 2000; ++rep) {
+        const RowTransform t = randomTransform(rng, rep % 2 ? 1e5 : 0.0);
+        const glm::dvec3 centre(100 * unit(rng), 100 * unit(rng), 100 * unit(rng));
+        const glm::dvec3 half(std::pow(10.0, exponent(rng)), std::pow(10.0, exponent(rng)), rep % 7 ? std::pow(10.0, exponent(rng)) : 0.0);
+        const Aabb box{centre - half, centre + half};
+        const Aabb bounds = placedBounds(box, t);
+        Aabb corners;
+        for (const glm::dvec3& p : placedCorners(box, t)) corners.extend(p);
+        for (int k = 0; k < 3; ++k) {
+            EXPECT_LE(bounds.min[k], corners.min[k]) << "rep " << rep;
+            EXPECT_GE(bounds.max[k], corners.max[k]) << "rep " << rep;
+            const double size = std::abs(t.rows[3][k]) + corners.max[k] - corners.min[k] + 1.0;
+            EXPECT_LE(corners.min[k] - bounds.min[k], 1e-9 * size) << "rep " << rep << ": too loose";
+            EXPECT_LE(bounds.max[k] - corners.max[k], 1e-9 * size) << "rep " << rep << ": too loose";
+        }
+        for (const glm::dvec3& c : box.corners()) {
+            for (int k = 0; k < 3; ++k) {
+                long double exact = (long double)t.rows[3][k];
+                for (int r = 0; r < 3; ++r) exact += (long double)c[r] * (long double)t.rows[size_t(r)][k];
+                EXPECT_LE((long double)bounds.min[k], exact) << "rep " << rep;
+                EXPECT_GE((long double)bounds.max[k], exact) << "rep " << rep;
+            }
+        }
+    }
+}
+
 // The bounds are conservative: every vertex's placed value lies under them, and so does
 // the true value of every point of the box (checked at its corners, in long double).
 // Every placed triangle's area lies within the transform's area-scale bounds times its

@@ -7,6 +7,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "core/file_read.h"
 #include "core/mesh.h"
 #include "tests/test_files.h"
 
@@ -314,4 +315,37 @@ TEST(MeshLoad, DispatchesByExtensionCaseInsensitively) {
     auto missing = loadMeshFile((dir / "gone.glb").string());
     ASSERT_FALSE(missing);
     EXPECT_EQ(missing.error().kind, ErrorKind::MissingResource);
+}
+
+// A dense mesh is read and stored at its size: the file into one buffer of its size (the
+// read used to grow it by a block at the end, copying it into one twice as large), the
+// vertex and triangle arrays reserved by a count of their lines (they used to grow as they
+// filled, touching about twice their size in fresh pages). The content is unchanged.
+TEST(MeshObj, ADenseMeshIsReadAndStoredAtItsSize) {
+    const int n = 300;  // 90,601 vertices, 180,000 triangles
+    std::string obj;
+    for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) obj += "v " + std::to_string(i) + " " + std::to_string((i + j) % 2) + " " + std::to_string(j) + "\n";
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const int a = j * (n + 1) + i + 1, b = a + 1, c = a + n + 1, d = c + 1;
+            obj += "f " + std::to_string(a) + " " + std::to_string(c) + " " + std::to_string(b) + "\n";
+            obj += "f " + std::to_string(b) + " " + std::to_string(c) + " " + std::to_string(d) + "\n";
+        }
+    const fs::path dir = freshTestDir();
+    writeText(dir / "dense.obj", obj);
+    Expected<std::string> text = readRegularFile((dir / "dense.obj").string(), "OBJ file");
+    ASSERT_TRUE(text) << text.error().what();
+    EXPECT_EQ(*text, obj);
+    EXPECT_LT(text->capacity(), obj.size() + 4096) << "the file's buffer grew past its size";
+    Expected<Mesh> m = loadObj((dir / "dense.obj").string());
+    ASSERT_TRUE(m) << m.error().what();
+    ASSERT_EQ(m->positions.size(), size_t((n + 1) * (n + 1)));
+    ASSERT_EQ(m->triangles.size(), size_t(2 * n * n));
+    EXPECT_EQ(m->positions.capacity(), m->positions.size());
+    EXPECT_EQ(m->triangles.capacity(), m->triangles.size());
+    EXPECT_EQ(m->triangleGroup.capacity(), m->triangleGroup.size());
+    EXPECT_EQ(m->positions[n + 2], glm::dvec3(1, 0, 1));
+    const uint32_t b = uint32_t(n * n + n - 1), c = uint32_t(n * (n + 1) + n - 1), d = uint32_t((n + 1) * (n + 1) - 1);
+    EXPECT_EQ(m->triangles.back(), (std::array<uint32_t, 3>{b, c, d}));
 }
