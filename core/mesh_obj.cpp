@@ -146,6 +146,53 @@ uint32_t resolveIndex(std::string_view tok, std::string_view ref, size_t defined
     return uint32_t(idx);
 }
 
+// The two statements a dense mesh is made of, read in one pass without splitting them
+// into tokens: "v x y z" and "f a b c" (plain positive indices, the group already open).
+// Each returns false, having changed nothing, for anything it does not accept exactly as
+// the general reading below would (other forms, signs, ranges, malformed or out-of-range
+// values): that reading then takes the statement and gives its errors. A fifth of a dense
+// world's scan was splitting and re-checking such lines.
+//
+// The next number of `s` from `at` (after blanks), ending at a blank or the end.
+template <class T>
+bool nextNumber(std::string_view s, size_t& at, T& value) {
+    while (at < s.size() && isBlank(s[at])) ++at;
+    if (at == s.size() || s[at] == '+') return false;  // '+': the general reading strips it
+    const auto [ptr, ec] = std::from_chars(s.data() + at, s.data() + s.size(), value);
+    if (ec != std::errc() || ptr == s.data() + at) return false;
+    at = size_t(ptr - s.data());
+    return at == s.size() || isBlank(s[at]);
+}
+
+bool onlyBlanksFrom(std::string_view s, size_t at) {
+    while (at < s.size() && isBlank(s[at])) ++at;
+    return at == s.size();
+}
+
+bool readPlainVertex(std::string_view stmt, std::vector<glm::dvec3>& positions) {
+    size_t at = 1;
+    glm::dvec3 p;
+    for (int k = 0; k < 3; ++k)
+        if (!nextNumber(stmt, at, p[k]) || !std::isfinite(p[k]) || std::abs(p[k]) > limits::kMaxLocalCoordinate) return false;
+    if (!onlyBlanksFrom(stmt, at) || positions.size() >= UINT32_MAX) return false;
+    positions.push_back(p);
+    return true;
+}
+
+bool readPlainTriangle(std::string_view stmt, Mesh& mesh, uint32_t group) {
+    size_t at = 1;
+    std::array<uint32_t, 3> tri;
+    for (uint32_t& v : tri) {
+        long long index = 0;
+        if (!nextNumber(stmt, at, index) || index < 1 || index > (long long)mesh.positions.size()) return false;
+        v = uint32_t(index - 1);
+    }
+    if (!onlyBlanksFrom(stmt, at)) return false;
+    mesh.triangles.push_back(tri);
+    mesh.triangleGroup.push_back(group);
+    return true;
+}
+
 // A material library as far as the bake needs it: the materials it defines, and those with
 // a `map_d` (the spec's only alpha-test signal; a `d` < 1 alone means blending and is
 // deliberately ignored).
@@ -234,6 +281,10 @@ Mesh parseObj(const fs::path& path, const std::string& text) {
     std::vector<std::string_view> tok;
     std::vector<uint32_t> poly;
     while (reader.next(stmt, line)) {
+        if (stmt.size() > 2 && isBlank(stmt[1]) &&
+            ((stmt[0] == 'v' && readPlainVertex(stmt, mesh.positions)) ||
+             (stmt[0] == 'f' && haveGroup && readPlainTriangle(stmt, mesh, group))))
+            continue;
         splitTokens(stmt, tok);
         if (tok.empty()) continue;
         const std::string_view key = tok[0];

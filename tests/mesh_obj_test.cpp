@@ -2,6 +2,10 @@
 // and errors that name file and line. Also loadMeshFile's dispatch.
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <random>
 
 #include <gtest/gtest.h>
 
@@ -348,4 +352,48 @@ TEST(MeshObj, ADenseMeshIsReadAndStoredAtItsSize) {
     EXPECT_EQ(m->positions[n + 2], glm::dvec3(1, 0, 1));
     const uint32_t b = uint32_t(n * n + n - 1), c = uint32_t(n * (n + 1) + n - 1), d = uint32_t((n + 1) * (n + 1) - 1);
     EXPECT_EQ(m->triangles.back(), (std::array<uint32_t, 3>{b, c, d}));
+}
+
+// Plain "v x y z" and "f a b c" lines are read by a fast path; every other form by the
+// general one. Both give the same mesh, bit for bit: the same vertices written with a w
+// (general) and the same faces by negative indices (general) against the plain forms,
+// with exponents, long mantissas, negative zero, tabs and comments. A plain-looking line
+// the fast path cannot take (an index out of range, a number out of range) is still the
+// general path's error, with its line.
+TEST(MeshObj, PlainLinesReadFastAreTheGeneralReading) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+    std::string plain = "# plain\n", general = "# general\n";
+    const int n = 200;
+    for (int k = 0; k < n; ++k) {
+        char x[64], y[64], z[64];
+        std::snprintf(x, sizeof x, "%.17g", unit(rng) * 1e3);
+        std::snprintf(y, sizeof y, "%.6e", unit(rng));
+        std::snprintf(z, sizeof z, "%s", k % 7 == 0 ? "-0" : std::to_string(unit(rng)).c_str());
+        plain += std::string(k % 3 ? "v " : "v\t") + x + " " + y + "  " + z + (k % 5 ? "\n" : " # a comment\n");
+        general += std::string("v ") + x + " " + y + " " + z + " 1\n";
+    }
+    for (int k = 2; k < n; ++k) {
+        plain += "f " + std::to_string(k - 1) + " " + std::to_string(k) + " " + std::to_string(k + 1) + "\n";
+        general += "f " + std::to_string(k - 1 - (n + 1)) + " " + std::to_string(k - (n + 1)) + " " + std::to_string(k + 1 - (n + 1)) + "\n";
+    }
+    Expected<Mesh> a = loadText(plain), b = loadText(general);
+    ASSERT_TRUE(a) << a.error().what();
+    ASSERT_TRUE(b) << b.error().what();
+    ASSERT_EQ(a->positions.size(), size_t(n));
+    ASSERT_EQ(a->positions.size(), b->positions.size());
+    for (size_t k = 0; k < a->positions.size(); ++k)
+        for (int c = 0; c < 3; ++c)
+            EXPECT_EQ(std::memcmp(&a->positions[k][c], &b->positions[k][c], sizeof(double)), 0) << "vertex " << k;
+    EXPECT_EQ(a->triangles, b->triangles);
+    EXPECT_EQ(a->triangleGroup, b->triangleGroup);
+    EXPECT_TRUE(std::signbit(a->positions[0].z)) << "-0 kept";
+
+    Expected<Mesh> far = loadText("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
+    ASSERT_FALSE(far);
+    EXPECT_EQ(far.error().line, 4);
+    EXPECT_NE(far.error().message.find("out of range"), std::string::npos) << far.error().message;
+    Expected<Mesh> huge = loadText("v 0 0 0\nv 1e9 0 0\n");
+    ASSERT_FALSE(huge);
+    EXPECT_EQ(huge.error().line, 2);
 }
