@@ -20,8 +20,8 @@ using Entry = SplitEntry;
 
 class Splitter {
 public:
-    Splitter(std::vector<Entry>& entries, std::vector<SplitNode>& nodes, uint32_t leafSize)
-        : entries_(entries), nodes_(nodes), leafSize_(leafSize) {}
+    Splitter(std::vector<Entry>& entries, std::vector<SplitNode>& nodes, uint32_t leafSize, uint32_t orderLeaf)
+        : entries_(entries), nodes_(nodes), leafSize_(leafSize), orderLeaf_(std::max(orderLeaf, 1u)) {}
 
     // Nodes of a subtree over `count` items (1 for a leaf): what the slots are counted by.
     uint32_t subtreeNodes(uint32_t count) {
@@ -42,17 +42,11 @@ public:
         n.begin = begin;
         n.end = end;
         const uint32_t count = end - begin;
-        if (count <= leafSize_) return;
-        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-        for (uint32_t k = begin; k < end; ++k) {
-            lo = glm::min(lo, entries_[k].centre);
-            hi = glm::max(hi, entries_[k].centre);
+        if (count <= leafSize_) {
+            orderWithin(begin, end);
+            return;
         }
-        const glm::dvec3 side = hi - lo;
-        const int axis = side.x >= side.y && side.x >= side.z ? 0 : side.y >= side.z ? 1 : 2;
-        const uint32_t mid = begin + count / 2;
-        std::nth_element(entries_.begin() + begin, entries_.begin() + mid, entries_.begin() + end,
-                         [axis](const Entry& a, const Entry& b) { return a.centre[axis] < b.centre[axis]; });
+        const uint32_t mid = split(begin, end);
         n.left = int32_t(childSlot);
         const uint32_t left = childSlot, right = childSlot + 1;
         const uint32_t leftSlot = childSlot + 2;
@@ -67,22 +61,47 @@ public:
     }
 
 private:
+    // Orders a leaf's items as the splits down to leaves of orderLeaf would.
+    void orderWithin(uint32_t begin, uint32_t end) {
+        if (end - begin <= orderLeaf_) return;
+        const uint32_t mid = split(begin, end);
+        orderWithin(begin, mid);
+        orderWithin(mid, end);
+    }
+
+    // Halves [begin, end) at its median along the longest side of its centres' box;
+    // returns where the right half starts.
+    uint32_t split(uint32_t begin, uint32_t end) {
+        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+        for (uint32_t k = begin; k < end; ++k) {
+            lo = glm::min(lo, entries_[k].centre);
+            hi = glm::max(hi, entries_[k].centre);
+        }
+        const glm::dvec3 side = hi - lo;
+        const int axis = side.x >= side.y && side.x >= side.z ? 0 : side.y >= side.z ? 1 : 2;
+        const uint32_t mid = begin + (end - begin) / 2;
+        std::nth_element(entries_.begin() + begin, entries_.begin() + mid, entries_.begin() + end,
+                         [axis](const Entry& a, const Entry& b) { return a.centre[axis] < b.centre[axis]; });
+        return mid;
+    }
+
     // subtreeNodes() once the table is filled: read-only, safe from any thread.
     uint32_t lookup(uint32_t count) const { return count <= leafSize_ ? 1 : memo_.at(count); }
 
     std::vector<Entry>& entries_;
     std::vector<SplitNode>& nodes_;
     const uint32_t leafSize_;
+    const uint32_t orderLeaf_;  // leaves' items are ordered down to ranges of this many
     std::unordered_map<uint32_t, uint32_t> memo_;
 };
 
 }  // namespace
 
-std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize) {
+std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize, uint32_t orderLeaf) {
     std::vector<SplitNode> nodes;
     if (entries.empty()) return nodes;
     leafSize = std::max(leafSize, 1u);
-    Splitter s(entries, nodes, leafSize);
+    Splitter s(entries, nodes, leafSize, orderLeaf == 0 ? leafSize : std::min(orderLeaf, leafSize));
     nodes.resize(s.subtreeNodes(uint32_t(entries.size())));
     if (entries.size() >= kParallelFrom) {
         tbb::task_group group;

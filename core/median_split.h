@@ -28,7 +28,10 @@ struct SplitEntry {
 
 // Permutes `entries` leaf by leaf and returns the nodes, as below (for callers that have
 // no array of centres by item: one array fewer, the size of a dense mesh's triangles).
-std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize);
+// With `orderLeaf` below `leafSize`, a leaf's items are further ordered as the splits down
+// to leaves of `orderLeaf` would order them, without nodes: the items' order (and so the
+// order of every walk over them) is that of the finer tree, with the nodes of the coarser.
+std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize, uint32_t orderLeaf = 0);
 
 // Permutes `order` (item indices; centres[item] is the item's centre) leaf by leaf and
 // returns the nodes: the root first, every child after its parent (a pass from the last

@@ -23,7 +23,7 @@ constexpr uint32_t kVertexLeaf = 16;
 }  // namespace
 
 template <class Box>
-void MeshTree::build(const Box& box, uint32_t leafSize) {
+void MeshTree::build(const Box& box, uint32_t leafSize, uint32_t orderLeaf) {
     if (order_.empty()) return;
     // Each item's box centre, for the splits.
     std::vector<SplitEntry> entries(order_.size());
@@ -32,7 +32,7 @@ void MeshTree::build(const Box& box, uint32_t leafSize) {
         box(order_[k], lo, hi);
         entries[k] = {0.5 * (lo + hi), order_[k]};
     }
-    const std::vector<SplitNode> split = medianSplit(entries, leafSize);
+    const std::vector<SplitNode> split = medianSplit(entries, leafSize, orderLeaf);
     for (size_t k = 0; k < order_.size(); ++k) order_[k] = entries[k].item;
     std::vector<SplitEntry>().swap(entries);  // freed before the nodes are made
     // Boxes bottom up: a leaf's from its items, an inner node's from its children (min and
@@ -73,7 +73,7 @@ MeshTree MeshTree::overTriangles(const Mesh& mesh) {
             lo = glm::min(lo, mesh.positions[v]);
             hi = glm::max(hi, mesh.positions[v]);
         }
-    }, kTriangleLeaf);
+    }, kTriangleLeaf, kTriangleOrder);
     return tree;
 }
 

@@ -45,9 +45,14 @@ public:
     // A tree over vertices (indices into `positions`).
     MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices);
     // A tree over every triangle of the mesh (items: triangle indices), leaves of up to
-    // kTriangleLeaf: the geometry stage walks it as its broad phase, where smaller leaves
-    // skip more triangles than they cost in nodes.
-    static constexpr uint32_t kTriangleLeaf = 4;
+    // kTriangleLeaf, each leaf's triangles in the order splits down to kTriangleOrder would
+    // give them (so every walk meets the triangles in the order of that finer tree, as it
+    // did when the leaves were of 4: the same first candidates, samples and witnesses).
+    // Leaves of 16, not 4: a quarter of the nodes (13 MB less on world D, whose first
+    // window pays for every MiB it touches), and a walk tests a leaf's triangles by their
+    // own boxes, which reject all a finer node's box would (every test is monotone in the
+    // box). World D's bake: 0.73 -> 0.67 s.
+    static constexpr uint32_t kTriangleLeaf = 16, kTriangleOrder = 4;
     static MeshTree overTriangles(const Mesh& mesh);
     bool empty() const { return order_.empty(); }
     size_t size() const { return order_.size(); }
@@ -73,7 +78,7 @@ private:
     // Median splits along the longest side of the items' centres: balanced, so that the
     // queries' stacks stay shallow. box(item, lo, hi) extends lo, hi by the item.
     template <class Box>
-    void build(const Box& box, uint32_t leafSize);
+    void build(const Box& box, uint32_t leafSize, uint32_t orderLeaf = 0);
     std::vector<Node> nodes_;
     std::vector<uint32_t> order_;
 };

@@ -145,7 +145,7 @@ private:
             walkOrdered(n.right, mayHold, leaf, first, parallelAbove);
         }
     }
-    // Median splits halve the triangles: the depth is about log2(n / 4) + 1.
+    // Median splits halve the triangles: the depth is about log2(n / 16) + 1.
     static constexpr int kMaxDepth = 96;
     const Mesh& mesh_;
     const MeshTree& tree_;

@@ -97,6 +97,42 @@ TEST(MedianSplit, ASubsetOfTheItems) {
     EXPECT_EQ(nodes[0].end, 1000u);
 }
 
+// Leaves of 16 ordered as leaves of 4 (the mesh index's triangle trees): the items in
+// exactly the finer tree's order, and the nodes exactly the finer tree's nodes down to
+// those of at most 16 items (the rest of it, below them, left out). Both entry points.
+TEST(MedianSplit, CoarseLeavesOrderedAsAFinerTree) {
+    std::mt19937 rng(6);
+    for (size_t n : {3u, 16u, 17u, 1000u, 40000u}) {
+        SCOPED_TRACE("n " + std::to_string(n));
+        const std::vector<glm::dvec3> centres = sheetCentres(n, rng);
+        auto build = [&](uint32_t leaf, uint32_t orderLeaf, std::vector<uint32_t>& order) {
+            std::vector<SplitEntry> entries(n);
+            for (uint32_t k = 0; k < n; ++k) entries[k] = {centres[k], k};
+            std::vector<SplitNode> nodes = medianSplit(entries, leaf, orderLeaf);
+            order.resize(n);
+            for (size_t k = 0; k < n; ++k) order[k] = entries[k].item;
+            return nodes;
+        };
+        std::vector<uint32_t> fineOrder, coarseOrder;
+        const std::vector<SplitNode> fine = build(4, 0, fineOrder), coarse = build(16, 4, coarseOrder);
+        EXPECT_EQ(coarseOrder, fineOrder);
+        expectValidSplit(coarse, coarseOrder, centres, 16, n);
+        // The finer tree's nodes that are not below one of at most 16 items.
+        std::vector<std::pair<uint32_t, uint32_t>> kept, got;
+        std::vector<int> stack{0};
+        while (!stack.empty()) {
+            const SplitNode& f = fine[size_t(stack.back())];
+            stack.pop_back();
+            kept.emplace_back(f.begin, f.end);
+            if (f.left >= 0 && f.end - f.begin > 16) stack.insert(stack.end(), {f.left + 1, f.left});
+        }
+        for (const SplitNode& c : coarse) got.emplace_back(c.begin, c.end);
+        std::sort(kept.begin(), kept.end());
+        std::sort(got.begin(), got.end());
+        EXPECT_EQ(got, kept);
+    }
+}
+
 TEST(MedianSplit, TheSameOnOneThreadAsOnMany) {
     std::mt19937 rng(5);
     const std::vector<glm::dvec3> centres = sheetCentres(100000, rng);
