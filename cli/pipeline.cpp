@@ -159,7 +159,14 @@ Status interrupted() {
                          "; the bake's temporary files were removed");
 }
 
-StageRunner::StageRunner(const BakeOptions& opt)
+Status StageRunner::probeGl(const BakeOptions& opt) {
+    if (!(opt.useGpu || opt.gpuBaseline)) return Status::ok();
+    Expected<std::unique_ptr<gpu::GlContext>> probe = gpu::createOffscreenContext(16, 16);
+    if (!probe) return probe.error();
+    return Status::ok();
+}
+
+StageRunner::StageRunner(const BakeOptions& opt, std::future<Status>* glProbe)
     : rays_(opt.raycast),
       volumes_(opt.geometry),
       confirm_([&] {
@@ -173,7 +180,7 @@ StageRunner::StageRunner(const BakeOptions& opt)
     if (useGpu || opt.gpuBaseline) {
         // The GPU passes need an OpenGL context; without one the confirmation is skipped
         // (its bits stay undecided, kept) and the baseline cannot run at all.
-        Expected<std::unique_ptr<gpu::GlContext>> probe = gpu::createOffscreenContext(16, 16);
+        const Status probe = glProbe && glProbe->valid() ? glProbe->get() : probeGl(opt);
         if (!probe) {
             if (opt.gpuBaseline) status_ = probe.error();
             notes_.push_back("gpu stage skipped: " + probe.error().message);
@@ -395,6 +402,10 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     // every resource once, and keeps what the whole bake needs to know (the warnings, the
     // files read, the hashes). The chunks themselves are loaded again when a window needs
     // them and dropped when no window will: memory follows the window.
+    // The GPU stages' probe of OpenGL loads the driver (tens of milliseconds on one
+    // thread, most of it the dynamic loader): it runs beside the scan, and the stages
+    // take its answer below. (A std::async future waits for it wherever the bake returns.)
+    std::future<Status> glProbe = std::async(std::launch::async, [&opt] { return StageRunner::probeGl(opt); });
     Expected<SpaceSource> scanned = SpaceSource::scan(opt.spaceDir, opt.resourceRoot, opt.chunkNames.empty() ? nullptr : &only);
     if (!scanned) return scanned.error();
     SpaceSource& source = *scanned;
@@ -501,7 +512,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     }
 
     // 4. Bake every chunk; stage its new text in a temporary file beside the target.
-    StageRunner runner(opt);
+    StageRunner runner(opt, &glProbe);
     result.notes.insert(result.notes.end(), runner.notes().begin(), runner.notes().end());
     if (!runner.status()) return runner.status().error();
 

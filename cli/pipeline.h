@@ -2,6 +2,8 @@
 // window, write the masks atomically, and gather what the summary and results JSON show.
 #pragma once
 
+#include <future>
+
 #include <functional>
 #include <map>
 #include <string>
@@ -108,7 +110,13 @@ struct BakeResult {
 // baseline method fails).
 class StageRunner {
 public:
-    explicit StageRunner(const BakeOptions& options);
+    // `glProbe`, when given and valid: the result of probeGl(options) started earlier (on
+    // another thread, beside the scan); otherwise the probe runs here.
+    explicit StageRunner(const BakeOptions& options, std::future<Status>* glProbe = nullptr);
+    // Whether the GPU stages these options ask for can get an OpenGL context (a context
+    // made and released: loading the driver takes tens of milliseconds on one thread, so
+    // runBake starts it beside the scan). OK when no GPU stage is asked for.
+    static Status probeGl(const BakeOptions& options);
     const Status& status() const { return status_; }
     const std::vector<std::string>& notes() const { return notes_; }
     // One StageTiming per stage, in order (for `bake`'s accumulation).

@@ -20,6 +20,17 @@ public:
         }
         return *this;
     }
+    // One 64-bit word at once: xor, multiply, and a shift that brings the high bits down
+    // (a multiply alone only carries bits upward, so two flipped sign bits cancelled).
+    // Not bytes()' value for the same word; 8x fewer steps. For bulk data whose hash is
+    // not compared with bytes()' (a mesh's arrays: hashing them byte by byte was the last
+    // 15 ms of a dense world's scan).
+    Hasher& word(uint64_t w) {
+        h_ ^= w;
+        h_ *= 0x9e3779b97f4a7c15ull;
+        h_ ^= h_ >> 29;
+        return *this;
+    }
     template <class T>
     Hasher& pod(const T& v) {
         return bytes(&v, sizeof v);

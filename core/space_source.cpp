@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <set>
@@ -24,10 +25,18 @@ namespace shadowcull {
 
 uint64_t contentHash(const Mesh& m) {
     Hasher h;
+    auto bits = [](double v) {
+        uint64_t w;
+        std::memcpy(&w, &v, sizeof w);
+        return w;
+    };
     h.pod(uint64_t(m.positions.size()));
-    for (const glm::dvec3& p : m.positions) h.vec(p);
+    for (const glm::dvec3& p : m.positions) h.word(bits(p.x)).word(bits(p.y)).word(bits(p.z));
     h.pod(uint64_t(m.triangles.size()));
-    for (size_t t = 0; t < m.triangles.size(); ++t) h.pod(m.triangles[t]).pod(m.triangleGroup[t]);
+    for (size_t t = 0; t < m.triangles.size(); ++t) {
+        const auto& tri = m.triangles[t];
+        h.word(uint64_t(tri[0]) | uint64_t(tri[1]) << 32).word(uint64_t(tri[2]) | uint64_t(m.triangleGroup[t]) << 32);
+    }
     for (const PrimitiveGroup& g : m.groups) h.pod(g.alphaTested).pod(g.doubleSided);
     return h.value();
 }

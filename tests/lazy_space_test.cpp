@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -179,6 +180,51 @@ TEST(SpaceSource, FirstUsesLoadedInParallelAreReportedInObjectOrder) {
 }
 
 // A resource edited while the bake runs is not silently used in place of what the scan read.
+// A mesh's content hash (hashed a word at a time) changes with any one bit of a vertex
+// coordinate, any index, the group of any triangle, the order of two triangles, and the
+// group flags; equal meshes hash equal.
+TEST(SpaceSource, AMeshsContentHashSeesEveryChange) {
+    Mesh m;
+    for (int k = 0; k < 40; ++k) m.positions.push_back({0.1 * k, 0.25 * (k % 3), -0.5 * k});
+    for (uint32_t k = 0; k + 2 < 40; ++k) {
+        m.triangles.push_back({k, k + 1, k + 2});
+        m.triangleGroup.push_back(k % 2);
+    }
+    m.groups.resize(2);
+    const uint64_t base = contentHash(m);
+    EXPECT_EQ(contentHash(Mesh(m)), base);
+    std::set<uint64_t> seen{base};
+    auto changed = [&](const Mesh& x, const std::string& what) { EXPECT_TRUE(seen.insert(contentHash(x)).second) << what; };
+    for (int axis = 0; axis < 3; ++axis)
+        for (int bit : {0, 31, 52, 63}) {
+            Mesh x = m;
+            uint64_t w;
+            std::memcpy(&w, &x.positions[17][axis], sizeof w);
+            w ^= uint64_t(1) << bit;
+            std::memcpy(&x.positions[17][axis], &w, sizeof w);
+            changed(x, "bit " + std::to_string(bit) + " of axis " + std::to_string(axis));
+        }
+    for (int c = 0; c < 3; ++c) {
+        Mesh x = m;
+        x.triangles[5][size_t(c)] ^= 1;
+        changed(x, "index " + std::to_string(c));
+    }
+    Mesh regrouped = m;
+    regrouped.triangleGroup[9] ^= 1;
+    changed(regrouped, "a triangle's group");
+    Mesh swapped = m;
+    std::swap(swapped.triangles[3], swapped.triangles[4]);
+    std::swap(swapped.triangleGroup[3], swapped.triangleGroup[4]);
+    changed(swapped, "two triangles swapped");
+    Mesh flagged = m;
+    flagged.groups[1].alphaTested = true;
+    changed(flagged, "a group's alpha test");
+    Mesh mirrored = m;  // two sign bits: a multiply-only word hash cancelled them
+    mirrored.positions[3].x = -mirrored.positions[3].x;
+    mirrored.positions[30].z = -mirrored.positions[30].z;
+    changed(mirrored, "two coordinates' signs");
+}
+
 TEST(SpaceSource, AResourceChangedSinceTheScanIsAnError) {
     const fs::path dir = freshTestDir();
     fs::copy(kSample, dir / "space", fs::copy_options::recursive);
