@@ -68,11 +68,8 @@ public:
     double maximum(const Upper& upper, const Eval& eval) const;
     // Calls visit(item) for every item of every leaf whose box and every ancestor's box
     // `may(lo, hi)` accepts (a conservative filter: false only where no item can matter).
-    // A node of at most `wholeAtMost` items is taken whole, its children not asked: for a
-    // filter that costs more than the items it would skip (the leaves of the tree as if
-    // built with leaves of that size: the splits above are the same).
     template <class May, class Visit>
-    void forEach(const May& may, const Visit& visit, uint32_t wholeAtMost = 0) const;
+    void forEach(const May& may, const Visit& visit) const;
 
 private:
     // Median splits along the longest side of the items' centres: balanced, so that the
@@ -176,7 +173,7 @@ double MeshTree::maximum(const Upper& upper, const Eval& eval) const {
 }
 
 template <class May, class Visit>
-void MeshTree::forEach(const May& may, const Visit& visit, uint32_t wholeAtMost) const {
+void MeshTree::forEach(const May& may, const Visit& visit) const {
     if (nodes_.empty()) return;
     int32_t stack[128];
     int top = 0;
@@ -184,7 +181,7 @@ void MeshTree::forEach(const May& may, const Visit& visit, uint32_t wholeAtMost)
     while (top > 0) {
         const Node& n = nodes_[size_t(stack[--top])];
         if (!may(n.lo, n.hi)) continue;
-        if (n.left < 0 || n.end - n.begin <= wholeAtMost) {
+        if (n.left < 0) {
             for (uint32_t k = n.begin; k < n.end; ++k) visit(order_[k]);
             continue;
         }

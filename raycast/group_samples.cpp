@@ -129,8 +129,7 @@ std::vector<glm::dvec3> sampleGroupWithinReach(const WindowObject& object, uint3
             Aabb placed;
             for (int c = 0; c < 3; ++c) placed.extend(object.lsTransform.apply(mesh.positions[mesh.triangles[t][c]]));
             if (!boxOutOfReach(light, placed)) chosen.push_back(t);
-        },
-        16);  // nodes of up to 16 triangles whole: each triangle is tested anyway
+        });
     std::sort(chosen.begin(), chosen.end());  // mesh order: the same points whatever the tree
     chosen.erase(std::remove_if(chosen.begin(), chosen.end(), [&](uint32_t t) { return !sampled(mesh, t); }), chosen.end());
     return place(object, samplePoints(mesh, chosen, areaSamples, maxFeatureSamples));

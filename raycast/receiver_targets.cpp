@@ -329,8 +329,7 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
                 const std::optional<double> over = w.lsTerrainMaxOver(pLo.x, pLo.z, pHi.x, pHi.z);
                 return !(over && pLo.y > *over + margin);
             },
-            [&](uint32_t t) { crossing.push_back(t); },
-            16);  // nodes of up to 16 triangles whole: the filter costs more than they do
+            [&](uint32_t t) { crossing.push_back(t); });
         std::sort(crossing.begin(), crossing.end());
         // Per vertex, computed on first use (stamp == pass): placed, side, height over the level.
         thread_local std::vector<uint32_t> stamp;
