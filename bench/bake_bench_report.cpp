@@ -347,10 +347,21 @@ void printComparisons(const std::vector<WorldRun>& runs) {
             if (D && D2k && D->bake["chunksBaked"] == D2k->bake["chunksBaked"]) {
                 const double ratio = D->bake["totalSeconds"].get<double>() / D2k->bake["totalSeconds"].get<double>();
                 const double cpuRatio = D->bake["cpuSeconds"].get<double>() / D2k->bake["cpuSeconds"].get<double>();
+                // With --rounds: each world's median round, and the ratio of every round's pair.
+                std::string perRound;
+                const size_t n = std::min(D->rounds.size(), D2k->rounds.size());
+                if (n > 1) {
+                    std::vector<double> r(n);
+                    for (size_t k = 0; k < n; ++k)
+                        r[k] = D->rounds[k]["totalSeconds"].get<double>() / D2k->rounds[k]["totalSeconds"].get<double>();
+                    const auto [lo, hi] = std::minmax_element(r.begin(), r.end());
+                    perRound = fmt(", medians of %.0f rounds in alternating order; ", double(n)) + fmt("rounds %.2fx", *lo) +
+                               fmt(" to %.2fx", *hi);
+                }
                 std::printf("| whole bake of D within %.0fx of D2k (same placements, 2k-triangle meshes) | %.2fx (D %s s, D2k %s s; "
-                            "CPU time %.2fx)%s | %s |\n",
+                            "CPU time %.2fx%s)%s | %s |\n",
                             kTargetDenseRatio, ratio, seconds(D->bake["totalSeconds"].get<double>()).c_str(),
-                            seconds(D2k->bake["totalSeconds"].get<double>()).c_str(), cpuRatio,
+                            seconds(D2k->bake["totalSeconds"].get<double>()).c_str(), cpuRatio, perRound.c_str(),
                             D->partial() ? fmt(", %.0f chunks of each", D->bake["chunksBaked"].get<double>()).c_str() : "",
                             ratio <= kTargetDenseRatio ? "met" : "NOT met");
             } else {

@@ -48,6 +48,9 @@ struct WorldRun {
     // compares bracket L in time: the mean of M's two bakes against L corrects a drift of
     // the machine's speed over the run, and their difference shows its noise.
     nlohmann::json again;
+    // --rounds N: every round's bake of this world, in the order run ({round, position in
+    // the round, totalSeconds, cpuSeconds, peakRssKiB}); `bake` is the median one's.
+    nlohmann::json rounds = nlohmann::json::array();
 
     bool partial() const { return baked && bake["chunksBaked"].get<uint64_t>() < bake["chunksTotal"].get<uint64_t>(); }
     double perChunk() const { return bake["totalSeconds"].get<double>() / bake["chunksBaked"].get<double>(); }

@@ -22,19 +22,51 @@ constexpr uint32_t kVertexLeaf = 16;
 
 }  // namespace
 
-template <class Box>
-void MeshTree::build(const Box& box, uint32_t leafSize, uint32_t orderLeaf) {
-    if (order_.empty()) return;
-    // Each item's box centre, for the splits.
-    std::vector<SplitEntry> entries(order_.size());
-    for (size_t k = 0; k < order_.size(); ++k) {
-        glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-        box(order_[k], lo, hi);
-        entries[k] = {0.5 * (lo + hi), order_[k]};
+namespace {
+
+// The nodes of ranges halved (count / 2 left) down to leaves of `leafSize`, in medianSplit's
+// layout (root first, children side by side after their parent), over items left in order.
+std::vector<SplitNode> halvedRanges(uint32_t count, uint32_t leafSize) {
+    std::vector<SplitNode> nodes(1);
+    // Node `at` over [begin, end): its children are appended, then their subtrees.
+    struct Pending {
+        uint32_t at, begin, end;
+    };
+    std::vector<Pending> stack{{0, 0, count}};
+    while (!stack.empty()) {
+        const Pending p = stack.back();
+        stack.pop_back();
+        nodes[p.at].begin = p.begin;
+        nodes[p.at].end = p.end;
+        if (p.end - p.begin <= leafSize) continue;
+        const uint32_t left = uint32_t(nodes.size()), mid = p.begin + (p.end - p.begin) / 2;
+        nodes[p.at].left = int32_t(left);
+        nodes.resize(nodes.size() + 2);
+        stack.push_back({left + 1, mid, p.end});
+        stack.push_back({left, p.begin, mid});
     }
-    const std::vector<SplitNode> split = medianSplit(entries, leafSize, orderLeaf);
-    for (size_t k = 0; k < order_.size(); ++k) order_[k] = entries[k].item;
-    std::vector<SplitEntry>().swap(entries);  // freed before the nodes are made
+    return nodes;
+}
+
+}  // namespace
+
+template <class Box>
+void MeshTree::build(const Box& box, uint32_t leafSize, uint32_t orderLeaf, bool keepOrder) {
+    if (order_.empty()) return;
+    std::vector<SplitNode> split;
+    if (keepOrder) {
+        split = halvedRanges(uint32_t(order_.size()), leafSize);
+    } else {
+        // Each item's box centre, for the splits.
+        std::vector<SplitEntry> entries(order_.size());
+        for (size_t k = 0; k < order_.size(); ++k) {
+            glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+            box(order_[k], lo, hi);
+            entries[k] = {0.5 * (lo + hi), order_[k]};
+        }
+        split = medianSplit(entries, leafSize, orderLeaf);
+        for (size_t k = 0; k < order_.size(); ++k) order_[k] = entries[k].item;
+    }  // the entries are freed before the nodes are made
     // Boxes bottom up: a leaf's from its items, an inner node's from its children (min and
     // max are exact, so each is the exact box of its items' vertices).
     nodes_.resize(split.size());
@@ -57,11 +89,12 @@ void MeshTree::build(const Box& box, uint32_t leafSize, uint32_t orderLeaf) {
     }
 }
 
-MeshTree::MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices) : order_(std::move(vertices)) {
+MeshTree::MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices, bool coherent)
+    : order_(std::move(vertices)) {
     build([&](uint32_t v, glm::dvec3& lo, glm::dvec3& hi) {
         lo = glm::min(lo, positions[v]);
         hi = glm::max(hi, positions[v]);
-    }, kVertexLeaf);
+    }, kVertexLeaf, 0, coherent);
 }
 
 MeshTree MeshTree::overTriangles(const Mesh& mesh) {
@@ -86,11 +119,24 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
     const size_t nv = m.positions.size(), ng = m.groups.size();
     std::vector<std::vector<uint32_t>> subsets;  // distinct subsets
     std::vector<const VertexTree*> trees;        // their trees, in the same order
+    // Every vertex in the order the triangle tree's leaves first use it (the unused ones
+    // last): a subset's vertices taken in this order lie leaf by leaf, so its tree halves
+    // ranges instead of sorting (a vertex tree's queries are exact maxima, whatever the
+    // tree's shape: core/mesh_index.h). Sorting them was a fifth of a dense mesh's index.
+    std::vector<uint32_t> coherent;
+    std::vector<uint32_t> member(nv, 0);  // stamps: the subset being gathered
+    uint32_t gathered = 0;
     auto treeOf = [&](std::vector<uint32_t> vertices) -> const VertexTree* {
         for (size_t k = 0; k < subsets.size(); ++k)
             if (subsets[k] == vertices) return trees[k];
-        subsets.push_back(vertices);
-        index->trees.emplace_back(m.positions, std::move(vertices));
+        ++gathered;
+        for (uint32_t v : vertices) member[v] = gathered;
+        std::vector<uint32_t> ordered;
+        ordered.reserve(vertices.size());
+        for (uint32_t v : coherent)
+            if (member[v] == gathered) ordered.push_back(v);
+        subsets.push_back(std::move(vertices));
+        index->trees.emplace_back(m.positions, std::move(ordered), true);
         trees.push_back(&index->trees.back());
         return trees.back();
     };
@@ -130,6 +176,15 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
         ++index->groupTrianglesWithArea[g];
     }
     index->triangles = MeshTree::overTriangles(m);
+    {
+        std::vector<char> used(nv, 0);
+        coherent.reserve(nv);
+        for (uint32_t t : index->triangles.order())
+            for (uint32_t v : m.triangles[t])
+                if (!used[v]) used[v] = 1, coherent.push_back(v);
+        for (uint32_t v = 0; v < nv; ++v)
+            if (!used[v]) coherent.push_back(v);
+    }
     index->used = treeOf(verticesOf(all));
     std::vector<uint32_t> every(nv);
     for (uint32_t v = 0; v < nv; ++v) every[v] = v;

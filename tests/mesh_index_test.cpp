@@ -254,6 +254,57 @@ TEST(MeshIndex, NodeBoundsHoldEveryVertex) {
     }
 }
 
+// The vertex trees keep their vertices in the triangle tree's leaf order and halve ranges
+// (no sort): each still holds its subset once, nodes are the exact boxes of their items,
+// children split their parent's range, leaves hold at most 16, the depth is that of a
+// balanced tree, and its maxima are a median-split tree's, bit for bit.
+TEST(MeshIndex, CoherentVertexTreesAreBalancedExactAndComplete) {
+    std::mt19937 rng(21);
+    const Mesh mesh = jaggedSheet(90, rng);
+    const MeshVertexIndex& index = vertexIndex(mesh);
+    for (const VertexTree* tree : {index.used, index.positions, index.group[0], index.group[1], index.groupWithArea[0]}) {
+        ASSERT_FALSE(tree->empty());
+        std::vector<uint32_t> items = tree->order();
+        std::sort(items.begin(), items.end());
+        EXPECT_TRUE(std::adjacent_find(items.begin(), items.end()) == items.end()) << "a vertex twice";
+        const std::vector<VertexTree::Node>& nodes = tree->nodes();
+        int depth = 0;
+        std::vector<int> level(nodes.size(), 1);
+        for (size_t k = 0; k < nodes.size(); ++k) {
+            const VertexTree::Node& n = nodes[k];
+            glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+            for (uint32_t i = n.begin; i < n.end; ++i) {
+                lo = glm::min(lo, mesh.positions[tree->order()[i]]);
+                hi = glm::max(hi, mesh.positions[tree->order()[i]]);
+            }
+            EXPECT_TRUE(lo == n.lo && hi == n.hi) << "node " << k;
+            if (n.left < 0) {
+                EXPECT_LE(n.end - n.begin, 16u);
+            } else {
+                const VertexTree::Node &a = nodes[size_t(n.left)], &b = nodes[size_t(n.right)];
+                EXPECT_GT(n.left, int32_t(k));
+                EXPECT_EQ(a.begin, n.begin);
+                EXPECT_EQ(a.end, b.begin);
+                EXPECT_EQ(b.end, n.end);
+                level[size_t(n.left)] = level[size_t(n.right)] = level[k] + 1;
+            }
+            depth = std::max(depth, level[k]);
+        }
+        EXPECT_LE(depth, int(std::ceil(std::log2(double(tree->size()) / 16.0))) + 2);
+        // The same maxima as a tree of median splits over the same vertices.
+        const VertexTree median(mesh.positions, tree->order());
+        for (int rep = 0; rep < 20; ++rep) {
+            const RowTransform t = randomTransform(rng, rep % 2 ? 1e5 : 0.0);
+            std::uniform_real_distribution<double> unit(-1.0, 1.0);
+            const glm::dvec3 dir = glm::normalize(glm::dvec3(unit(rng), unit(rng), unit(rng)));
+            auto upper = [&](const glm::dvec3& lo, const glm::dvec3& hi) { return placedDotUpper(t, dir, lo, hi); };
+            auto eval = [&](uint32_t v) { return glm::dot(dir, t.apply(mesh.positions[v])); };
+            EXPECT_TRUE(sameBits(tree->maximum(upper, eval), median.maximum(upper, eval)));
+        }
+    }
+    EXPECT_EQ(index.positions->size(), mesh.positions.size());
+}
+
 // A zero coordinate: -0 and +0 compare equal and the loop keeps the first it met, so the
 // tree hands the box back to the loop (which gives the loop's sign).
 TEST(MeshIndex, ZeroCoordinatesAreTheLoopsToo) {
