@@ -119,11 +119,9 @@ std::vector<glm::dvec3> sampleGroupWithinReach(const WindowObject& object, uint3
     const Mesh& mesh = *object.mesh;
     std::vector<uint32_t> chosen;
     vertexIndex(mesh).triangles.forEach(
-        [&](const glm::dvec3& lo, const glm::dvec3& hi) {
-            Aabb placed;
-            for (const glm::dvec3& p : placedCorners(Aabb{lo, hi}, object.lsTransform)) placed.extend(p);
-            return !boxOutOfReach(light, placed);
-        },
+        // A node by its placed bounds (core/window.h: every placed corner, rounding
+        // included), so that no triangle a vertex's own rounding puts within reach is cut.
+        [&](const glm::dvec3& lo, const glm::dvec3& hi) { return !boxOutOfReach(light, placedBounds(Aabb{lo, hi}, object.lsTransform)); },
         [&](uint32_t t) {
             if (mesh.triangleGroup[t] != group) return;
             Aabb placed;
