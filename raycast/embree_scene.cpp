@@ -46,11 +46,13 @@ EmbreeScenes::~EmbreeScenes() {
 }
 
 void EmbreeScenes::forget(const std::unordered_set<const Mesh*>& meshes) {
-    for (const Mesh* m : meshes)
+    for (const Mesh* m : meshes) {
         if (auto it = prototypes_.find(m); it != prototypes_.end()) {
             release(it->second);
             prototypes_.erase(it);
         }
+        full_.erase(m);  // the address may come back as another mesh
+    }
 }
 
 const EmbreeScenes::Prototype& EmbreeScenes::prototype(const Mesh* mesh, bool terrain) {
@@ -68,9 +70,13 @@ const EmbreeScenes::Prototype& EmbreeScenes::prototype(const Mesh* mesh, bool te
         proto.offset.y = std::round(0.5 * (lo + hi));
     }
     const glm::dvec3 offset = proto.offset;
+    proto.compact = !terrain && mesh->triangles.size() >= kCompactFrom && !full_.count(mesh);
+    proto.raysAtBuild = rays_;
+    const RTCSceneFlags flags = RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
+                                              (proto.compact ? RTC_SCENE_FLAG_COMPACT : RTC_SCENE_FLAG_NONE));
     auto makeScene = [&](const std::vector<uint32_t>& subset) {
         RTCScene s = rtcNewScene(device_);
-        rtcSetSceneFlags(s, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+        rtcSetSceneFlags(s, flags);
         RTCGeometry g = makeTriangles(device_, *mesh, subset, [&](const glm::dvec3& p) { return p - offset; });
         rtcAttachGeometryByID(s, g, 0);
         rtcReleaseGeometry(g);
@@ -116,6 +122,18 @@ RTCScene EmbreeScenes::placeAll(const BakeWindow& w, bool opaque) {
 }
 
 WindowScene EmbreeScenes::buildWindow(const BakeWindow& w) {
+    // Compact prototypes that have had their rays' worth (kFullAfterRays): built again in
+    // full when this window places them (a window scene still using the old one holds it).
+    for (auto it = prototypes_.begin(); it != prototypes_.end();) {
+        const Prototype& p = it->second;
+        if (p.compact && rays_ - p.raysAtBuild >= kFullAfterRays * uint64_t(it->first->triangles.size())) {
+            full_.insert(it->first);
+            release(it->second);
+            it = prototypes_.erase(it);
+        } else {
+            ++it;
+        }
+    }
     RTCScene all = placeAll(w, false);
     WindowScene scene(all, w.hasAlphaTested ? placeAll(w, true) : all);
     // The window slid: the prototypes of meshes it no longer holds (the terrains of the

@@ -518,6 +518,7 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
             trace(more, "witness ray through a receiver in the group's shadow (receiver-side search)", false);
         }
         scene.reset();
+        im.scenes->noteRays(rays);
         stats.raysCast += rays;
         stats.provedKept += kept;
         stats.bitsExamined += examined;
