@@ -48,15 +48,47 @@ std::vector<SplitNode> halvedRanges(uint32_t count, uint32_t leafSize) {
     return nodes;
 }
 
+// The nodes of a tree that mirrors `tree` (a triangle tree) over items placed in its order:
+// node k's items are [before[tree[k].begin], before[tree[k].end]). Nodes with no items are
+// left out, an inner node with one child that has items is replaced by it; the layout is
+// medianSplit's (root first, siblings side by side after their parent). At least one item.
+std::vector<SplitNode> mirroredNodes(const std::vector<MeshTree::Node>& tree, const std::vector<uint32_t>& before) {
+    auto empty = [&](int32_t k) { return before[tree[size_t(k)].begin] == before[tree[size_t(k)].end]; };
+    // The node that stands for k: down through inner nodes with an empty child.
+    auto standIn = [&](int32_t k) {
+        while (tree[size_t(k)].left >= 0) {
+            const MeshTree::Node& n = tree[size_t(k)];
+            if (empty(n.left)) k = n.right;
+            else if (empty(n.right)) k = n.left;
+            else break;
+        }
+        return k;
+    };
+    std::vector<SplitNode> nodes(1);
+    std::vector<std::pair<uint32_t, int32_t>> stack{{0u, standIn(0)}};  // (slot, tree node)
+    while (!stack.empty()) {
+        const auto [slot, k] = stack.back();
+        stack.pop_back();
+        const MeshTree::Node& n = tree[size_t(k)];
+        nodes[slot].begin = before[n.begin];
+        nodes[slot].end = before[n.end];
+        if (n.left < 0) continue;
+        const uint32_t left = uint32_t(nodes.size());
+        nodes[slot].left = int32_t(left);
+        nodes.resize(nodes.size() + 2);
+        stack.push_back({left + 1, standIn(n.right)});
+        stack.push_back({left, standIn(n.left)});
+    }
+    return nodes;
+}
+
 }  // namespace
 
 template <class Box>
-void MeshTree::build(const Box& box, uint32_t leafSize, uint32_t orderLeaf, bool keepOrder) {
+void MeshTree::build(const Box& box, uint32_t leafSize, uint32_t orderLeaf, std::vector<SplitNode> given) {
     if (order_.empty()) return;
-    std::vector<SplitNode> split;
-    if (keepOrder) {
-        split = halvedRanges(uint32_t(order_.size()), leafSize);
-    } else {
+    std::vector<SplitNode> split = std::move(given);
+    if (split.empty()) {
         // Each item's box centre, for the splits.
         std::vector<SplitEntry> entries(order_.size());
         for (size_t k = 0; k < order_.size(); ++k) {
@@ -89,12 +121,12 @@ void MeshTree::build(const Box& box, uint32_t leafSize, uint32_t orderLeaf, bool
     }
 }
 
-MeshTree::MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices, bool coherent)
+MeshTree::MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices, std::vector<SplitNode> nodes)
     : order_(std::move(vertices)) {
     build([&](uint32_t v, glm::dvec3& lo, glm::dvec3& hi) {
         lo = glm::min(lo, positions[v]);
         hi = glm::max(hi, positions[v]);
-    }, kVertexLeaf, 0, coherent);
+    }, kVertexLeaf, 0, std::move(nodes));
 }
 
 MeshTree MeshTree::overTriangles(const Mesh& mesh) {
@@ -119,24 +151,41 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
     const size_t nv = m.positions.size(), ng = m.groups.size();
     std::vector<std::vector<uint32_t>> subsets;  // distinct subsets
     std::vector<const VertexTree*> trees;        // their trees, in the same order
-    // Every vertex in the order the triangle tree's leaves first use it (the unused ones
-    // last): a subset's vertices taken in this order lie leaf by leaf, so its tree halves
-    // ranges instead of sorting (a vertex tree's queries are exact maxima, whatever the
-    // tree's shape: core/mesh_index.h). Sorting them was a fifth of a dense mesh's index.
-    std::vector<uint32_t> coherent;
-    std::vector<uint32_t> member(nv, 0);  // stamps: the subset being gathered
+    // A vertex tree's queries are exact maxima whatever the tree's shape (core/mesh_index.h),
+    // so its vertices are not sorted: they are taken in the order the triangle tree first
+    // uses them, and the tree mirrors the triangle tree. The vertices a triangle node first
+    // uses are a contiguous run of that order, and lie in its triangles' box; a node whose
+    // run is empty is left out (its sibling takes its place). Sorting them was a fifth of
+    // a dense mesh's index. A subset with vertices no triangle uses (the tree of every
+    // vertex) has those last, and halved ranges for a tree.
+    std::vector<uint32_t> member(nv, 0);  // stamps: the subset's vertices not placed yet
     uint32_t gathered = 0;
+    std::vector<uint32_t> before;  // per position in the triangle order: vertices placed before it
     auto treeOf = [&](std::vector<uint32_t> vertices) -> const VertexTree* {
         for (size_t k = 0; k < subsets.size(); ++k)
             if (subsets[k] == vertices) return trees[k];
         ++gathered;
         for (uint32_t v : vertices) member[v] = gathered;
+        const std::vector<uint32_t>& triangleOrder = index->triangles.order();
         std::vector<uint32_t> ordered;
         ordered.reserve(vertices.size());
-        for (uint32_t v : coherent)
-            if (member[v] == gathered) ordered.push_back(v);
+        before.resize(triangleOrder.size() + 1);
+        for (size_t i = 0; i < triangleOrder.size(); ++i) {
+            before[i] = uint32_t(ordered.size());
+            for (uint32_t v : m.triangles[triangleOrder[i]])
+                if (member[v] == gathered) member[v] = 0, ordered.push_back(v);
+        }
+        before[triangleOrder.size()] = uint32_t(ordered.size());
+        std::vector<SplitNode> nodes;
+        if (ordered.size() < vertices.size()) {
+            for (uint32_t v : vertices)
+                if (member[v] == gathered) ordered.push_back(v);
+            nodes = halvedRanges(uint32_t(ordered.size()), kVertexLeaf);
+        } else if (!ordered.empty()) {
+            nodes = mirroredNodes(index->triangles.nodes(), before);
+        }
         subsets.push_back(std::move(vertices));
-        index->trees.emplace_back(m.positions, std::move(ordered), true);
+        index->trees.emplace_back(m.positions, std::move(ordered), std::move(nodes));
         trees.push_back(&index->trees.back());
         return trees.back();
     };
@@ -176,15 +225,6 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
         ++index->groupTrianglesWithArea[g];
     }
     index->triangles = MeshTree::overTriangles(m);
-    {
-        std::vector<char> used(nv, 0);
-        coherent.reserve(nv);
-        for (uint32_t t : index->triangles.order())
-            for (uint32_t v : m.triangles[t])
-                if (!used[v]) used[v] = 1, coherent.push_back(v);
-        for (uint32_t v = 0; v < nv; ++v)
-            if (!used[v]) coherent.push_back(v);
-    }
     index->used = treeOf(verticesOf(all));
     std::vector<uint32_t> every(nv);
     for (uint32_t v = 0; v < nv; ++v) every[v] = v;

@@ -26,6 +26,8 @@
 
 #include <glm/vec3.hpp>
 
+#include "core/median_split.h"
+
 namespace shadowcull {
 
 struct Mesh;
@@ -42,10 +44,9 @@ public:
         int32_t left = -1, right = -1;  // children (both or neither)
     };
     MeshTree() = default;
-    // A tree over vertices (indices into `positions`): median splits, or with `coherent`
-    // the vertices' own order halved (for an order that is already spatially coherent, such
-    // as the triangle tree's leaves': no sort, and boxes almost as tight).
-    MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices, bool coherent = false);
+    // A tree over vertices (indices into `positions`): median splits; or, with `nodes`
+    // (medianSplit's layout over the vertices in the order given), those nodes, boxed.
+    MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices, std::vector<SplitNode> nodes = {});
     // A tree over every triangle of the mesh (items: triangle indices), leaves of up to
     // kTriangleLeaf, each leaf's triangles in the order splits down to kTriangleOrder would
     // give them (so every walk meets the triangles in the order of that finer tree, as it
@@ -76,9 +77,9 @@ public:
 private:
     // Median splits along the longest side of the items' centres: balanced, so that the
     // queries' stacks stay shallow. box(item, lo, hi) extends lo, hi by the item.
-    // With `keepOrder`, the items' order is kept and ranges are halved instead.
+    // With `given` nodes, the items' order is kept and those nodes are boxed instead.
     template <class Box>
-    void build(const Box& box, uint32_t leafSize, uint32_t orderLeaf = 0, bool keepOrder = false);
+    void build(const Box& box, uint32_t leafSize, uint32_t orderLeaf = 0, std::vector<SplitNode> given = {});
     std::vector<Node> nodes_;
     std::vector<uint32_t> order_;
 };

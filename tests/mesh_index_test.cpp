@@ -254,11 +254,13 @@ TEST(MeshIndex, NodeBoundsHoldEveryVertex) {
     }
 }
 
-// The vertex trees keep their vertices in the triangle tree's leaf order and halve ranges
-// (no sort): each still holds its subset once, nodes are the exact boxes of their items,
-// children split their parent's range, leaves hold at most 16, the depth is that of a
-// balanced tree, and its maxima are a median-split tree's, bit for bit.
-TEST(MeshIndex, CoherentVertexTreesAreBalancedExactAndComplete) {
+// The vertex trees keep their vertices in the order the triangle tree first uses them and
+// mirror its nodes (no sort): each still holds its subset once, nodes are the exact boxes
+// of their items, none is empty, children split their parent's range,
+// leaves hold at most a triangle leaf's 48 vertices, the depth is at most the triangle
+// tree's, and the maxima are a median-split tree's, bit for bit. The tree of every vertex,
+// which holds one no triangle uses, halves ranges instead.
+TEST(MeshIndex, VertexTreesMirrorTheTriangleTreeExactlyAndCompletely) {
     std::mt19937 rng(21);
     const Mesh mesh = jaggedSheet(90, rng);
     const MeshVertexIndex& index = vertexIndex(mesh);
@@ -278,8 +280,9 @@ TEST(MeshIndex, CoherentVertexTreesAreBalancedExactAndComplete) {
                 hi = glm::max(hi, mesh.positions[tree->order()[i]]);
             }
             EXPECT_TRUE(lo == n.lo && hi == n.hi) << "node " << k;
+            EXPECT_LT(n.begin, n.end) << "an empty node";
             if (n.left < 0) {
-                EXPECT_LE(n.end - n.begin, 16u);
+                EXPECT_LE(n.end - n.begin, tree == index.positions ? 16u : 48u);
             } else {
                 const VertexTree::Node &a = nodes[size_t(n.left)], &b = nodes[size_t(n.right)];
                 EXPECT_GT(n.left, int32_t(k));
@@ -290,7 +293,16 @@ TEST(MeshIndex, CoherentVertexTreesAreBalancedExactAndComplete) {
             }
             depth = std::max(depth, level[k]);
         }
-        EXPECT_LE(depth, int(std::ceil(std::log2(double(tree->size()) / 16.0))) + 2);
+        int triangleDepth = 0;
+        {
+            const std::vector<MeshTree::Node>& tn = index.triangles.nodes();
+            std::vector<int> tl(tn.size(), 1);
+            for (size_t k = 0; k < tn.size(); ++k) {
+                if (tn[k].left >= 0) tl[size_t(tn[k].left)] = tl[size_t(tn[k].right)] = tl[k] + 1;
+                triangleDepth = std::max(triangleDepth, tl[k]);
+            }
+        }
+        EXPECT_LE(depth, tree == index.positions ? int(std::ceil(std::log2(double(tree->size()) / 16.0))) + 2 : triangleDepth);
         // The same maxima as a tree of median splits over the same vertices.
         const VertexTree median(mesh.positions, tree->order());
         for (int rep = 0; rep < 20; ++rep) {
