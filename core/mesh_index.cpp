@@ -20,34 +20,6 @@ namespace {
 
 constexpr uint32_t kVertexLeaf = 16;
 
-}  // namespace
-
-namespace {
-
-// The nodes of ranges halved (count / 2 left) down to leaves of `leafSize`, in medianSplit's
-// layout (root first, children side by side after their parent), over items left in order.
-std::vector<SplitNode> halvedRanges(uint32_t count, uint32_t leafSize) {
-    std::vector<SplitNode> nodes(1);
-    // Node `at` over [begin, end): its children are appended, then their subtrees.
-    struct Pending {
-        uint32_t at, begin, end;
-    };
-    std::vector<Pending> stack{{0, 0, count}};
-    while (!stack.empty()) {
-        const Pending p = stack.back();
-        stack.pop_back();
-        nodes[p.at].begin = p.begin;
-        nodes[p.at].end = p.end;
-        if (p.end - p.begin <= leafSize) continue;
-        const uint32_t left = uint32_t(nodes.size()), mid = p.begin + (p.end - p.begin) / 2;
-        nodes[p.at].left = int32_t(left);
-        nodes.resize(nodes.size() + 2);
-        stack.push_back({left + 1, mid, p.end});
-        stack.push_back({left, p.begin, mid});
-    }
-    return nodes;
-}
-
 // The nodes of a tree that mirrors `tree` (a triangle tree) over items placed in its order:
 // node k's items are [before[tree[k].begin], before[tree[k].end]). Nodes with no items are
 // left out, an inner node with one child that has items is replaced by it; the layout is
@@ -157,15 +129,16 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
     // uses are a contiguous run of that order, and lie in its triangles' box; a node whose
     // run is empty is left out (its sibling takes its place). Sorting them was a fifth of
     // a dense mesh's index. A subset with vertices no triangle uses (the tree of every
-    // vertex) has those last, and halved ranges for a tree.
-    std::vector<uint32_t> member(nv, 0);  // stamps: the subset's vertices not placed yet
-    uint32_t gathered = 0;
+    // vertex, rarely) gets median splits instead.
+    // Stamps (== pass): verticesOf's marks, and treeOf's vertices not placed yet.
+    std::vector<uint32_t> stamp(nv, 0);
+    uint32_t pass = 0;
     std::vector<uint32_t> before;  // per position in the triangle order: vertices placed before it
     auto treeOf = [&](std::vector<uint32_t> vertices) -> const VertexTree* {
         for (size_t k = 0; k < subsets.size(); ++k)
             if (subsets[k] == vertices) return trees[k];
-        ++gathered;
-        for (uint32_t v : vertices) member[v] = gathered;
+        ++pass;
+        for (uint32_t v : vertices) stamp[v] = pass;
         const std::vector<uint32_t>& triangleOrder = index->triangles.order();
         std::vector<uint32_t> ordered;
         ordered.reserve(vertices.size());
@@ -173,17 +146,12 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
         for (size_t i = 0; i < triangleOrder.size(); ++i) {
             before[i] = uint32_t(ordered.size());
             for (uint32_t v : m.triangles[triangleOrder[i]])
-                if (member[v] == gathered) member[v] = 0, ordered.push_back(v);
+                if (stamp[v] == pass) stamp[v] = 0, ordered.push_back(v);
         }
         before[triangleOrder.size()] = uint32_t(ordered.size());
-        std::vector<SplitNode> nodes;
-        if (ordered.size() < vertices.size()) {
-            for (uint32_t v : vertices)
-                if (member[v] == gathered) ordered.push_back(v);
-            nodes = halvedRanges(uint32_t(ordered.size()), kVertexLeaf);
-        } else if (!ordered.empty()) {
-            nodes = mirroredNodes(index->triangles.nodes(), before);
-        }
+        std::vector<SplitNode> nodes;  // none: median splits
+        if (ordered.size() < vertices.size()) ordered = vertices;
+        else if (!ordered.empty()) nodes = mirroredNodes(index->triangles.nodes(), before);
         subsets.push_back(std::move(vertices));
         index->trees.emplace_back(m.positions, std::move(ordered), std::move(nodes));
         trees.push_back(&index->trees.back());
@@ -192,8 +160,6 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
     // The vertices of `triangles` (indices into m.triangles), sorted, once each: marked,
     // then gathered in index order (no sort: a dense mesh's lists were three sorts of
     // 90,000 indices).
-    std::vector<uint32_t> stamp(nv, 0);
-    uint32_t pass = 0;
     auto verticesOf = [&](const std::vector<uint32_t>& triangles) {
         ++pass;
         size_t count = 0;

@@ -259,7 +259,7 @@ TEST(MeshIndex, NodeBoundsHoldEveryVertex) {
 // of their items, none is empty, children split their parent's range,
 // leaves hold at most a triangle leaf's 48 vertices, the depth is at most the triangle
 // tree's, and the maxima are a median-split tree's, bit for bit. The tree of every vertex,
-// which holds one no triangle uses, halves ranges instead.
+// which holds one no triangle uses, has median splits instead.
 TEST(MeshIndex, VertexTreesMirrorTheTriangleTreeExactlyAndCompletely) {
     std::mt19937 rng(21);
     const Mesh mesh = jaggedSheet(90, rng);
