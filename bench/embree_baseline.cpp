@@ -314,16 +314,16 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
         }
         return occluded;
     });
-    // rtcIntersect1 with the stage's alpha-skip filter over the whole ray (the stage's ray
+    // rtcIntersect1 with the stage's transparency filter over the whole ray (the stage's ray
     // for p); metric: the fraction whose closest opaque hit is on the target object.
     measure("closest1", 4096, [&](uint64_t b, uint64_t e) {
         uint64_t onTarget = 0;
         for (uint64_t i = b; i < e; ++i) {
             const Ray& s = rayAt(i);
-            raycast::AlphaSkip skip;
+            raycast::TransparentSkip skip;
             rtcInitIntersectContext(&skip.ctx);
-            if (w.hasAlphaTested) {
-                skip.ctx.filter = &raycast::skipAlphaTested;
+            if (raycast::needsTransparencyFilter(w)) {
+                skip.ctx.filter = &raycast::skipTransparent;
                 skip.window = &w;
                 skip.object = s.object;
                 skip.group = s.group;

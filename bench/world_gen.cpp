@@ -1061,7 +1061,8 @@ WorldStats writeWorld(const WorldSpec& spec, const std::string& dir) {
                 place("prop", name, placed({x, groundRange(x, z, 0.5).first, z}, rng.uniform(0, 360)));
                 ++placedHere;
             }
-            // Grass cards: castsShadow false (decided by the input; still occluders and receivers).
+            // Grass cards: castsShadow false (decided by the input; they block no light and still
+            // receive, semantics.md condition 1).
             const int nGrass = count(k * 20);
             for (int n = 0; n < nGrass; ++n) {
                 const double x = cx + rng.uniform(0.5, S - 0.5), z = cz + rng.uniform(0.5, S - 0.5);

@@ -8,6 +8,7 @@
 
 #include "cli/pipeline.h"
 #include "core/format.h"
+#include "core/savings.h"
 #include "gpu/render.h"
 
 namespace fs = std::filesystem;
@@ -18,6 +19,17 @@ namespace {
 
 std::string vec(const glm::dvec3& v) {
     return "(" + formatNumber(v.x) + " " + formatNumber(v.y) + " " + formatNumber(v.z) + ")";
+}
+
+// Objects the input check culled because they cast no shadow (castsShadow false).
+size_t nonCasters(const BakeResult& r) {
+    size_t n = 0;
+    for (const ChunkVerdicts& cv : r.chunks)
+        for (size_t oi = 0; oi < cv.objects.size(); ++oi)
+            if (cv.objects[oi].groupCount > 0 && cv.lightCount > 0 && cv.at(oi, 0, 0).stage == "input" &&
+                cv.at(oi, 0, 0).reason() == savings::kCastsShadowFalse)
+                ++n;
+    return n;
 }
 
 std::string objectName(const ObjectVerdicts& ov) {
@@ -94,6 +106,11 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
     out << "bits " << bits << "; GPU method at " << options.gpuResolution << ": " << falseCulls << " false culls, "
         << falseKeeps << " false keeps; " << undecided << " bits undecided by the analytic pipeline\n";
     if (!g->gl.empty()) out << "OpenGL: " << g->gl << "\n";
+    if (const size_t n = nonCasters(*a); n > 0)
+        out << "note: " << n << (n == 1 ? " object casts" : " objects cast")
+            << " no shadow (castsShadow false). The original method draws them as occluders (its reading: never a "
+               "caster, still an occluder); an engine never draws them into its shadow map, so they hide nothing, and a "
+               "caster hidden only by them that it culls is counted as a GPU false cull\n";
     if (!lines.empty()) out << "disagreements:\n" << lines;
 
     if (options.pictures && !pictures.empty()) {

@@ -78,7 +78,7 @@ Bake fromResults(const std::string& path, const results::ResultsFile& file) {
         if (L.position) i.position = vecOf(*L.position);
         if (L.direction) i.direction = vecOf(*L.direction);
         i.range = L.range, i.coneAngle = L.coneAngle, i.bias = L.bias, i.slopeBias = L.slopeBias;
-        i.filterRadius = L.filterRadius;
+        i.filterRadius = L.filterRadius, i.normalBias = L.normalBias;
     }
     for (const results::ChunkRecord& rc : file.chunks) {
         ChunkSide& c = b.chunks[rc.chunk];  // the reader refuses a chunk named twice
@@ -187,7 +187,7 @@ Bake readSpace(const std::string& path) {
             if (L.type != LightType::Directional) i.position = vecOf(L.position), i.range = L.range;
             if (L.type != LightType::Point) i.direction = vecOf(L.direction);
             if (L.type == LightType::Spot) i.coneAngle = L.coneHalfAngleDeg;
-            i.bias = L.bias, i.slopeBias = L.slopeBias, i.filterRadius = L.filterRadius;
+            i.bias = L.bias, i.slopeBias = L.slopeBias, i.filterRadius = L.filterRadius, i.normalBias = L.normalBias;
         }
     }
     if (names.empty() && !b.lightsKnown)

@@ -56,7 +56,7 @@ struct LightInfo {
     std::string name, type;
     // As baked, when the side records it (results files of this version, or space.xml).
     std::optional<Vec> position, direction;
-    std::optional<double> range, coneAngle, bias, slopeBias, filterRadius;
+    std::optional<double> range, coneAngle, bias, slopeBias, filterRadius, normalBias;
 };
 
 // Grid order for chunk file names (as the bake lists them), other names after, by text.

@@ -23,7 +23,8 @@ std::string lightParameterChanges(const LightInfo& a, const LightInfo& b) {
     for (const auto& [what, x, y, unit] :
          {std::tuple{"range", &a.range, &b.range, " m"}, std::tuple{"cone", &a.coneAngle, &b.coneAngle, " deg"},
           std::tuple{"bias", &a.bias, &b.bias, " m"}, std::tuple{"slope bias", &a.slopeBias, &b.slopeBias, " m"},
-          std::tuple{"filter radius", &a.filterRadius, &b.filterRadius, " m"}})
+          std::tuple{"filter radius", &a.filterRadius, &b.filterRadius, " m"},
+          std::tuple{"normal bias", &a.normalBias, &b.normalBias, " m"}})
         if (*x && *y && **x != **y) add(std::string(what) + " " + num(**x) + " -> " + num(**y) + unit);
     return s;
 }

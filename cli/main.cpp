@@ -230,7 +230,7 @@ int main(int argc, char** argv) {
     PreviewOptions previewOpt;
     CLI::App* preview = app.add_subcommand("preview", "Render a camera view shadowed as an engine does, with every caster and with the kept ones (PNG)");
     preview->add_option("space", previewOpt.bake.spaceDir, "Space directory")->required()->check(existingDirectory());
-    preview->footer(kReportExitCodes);
+    preview->footer(kPreviewExitCodes);
     preview->add_option("--chunk", previewOpt.chunk, "Chunk (XXXXZZZZo or XXXXZZZZo.chunk)")->required();
     preview->add_option("--light", previewOpt.light, "Light (1-based, as in space.xml)")->required()->check(atLeast(1));
     preview->add_option("--camera", previewOpt.camera, "EYE_X,EYE_Y,EYE_Z,TARGET_X,TARGET_Y,TARGET_Z in world metres (default: the chunk from above)");
@@ -257,6 +257,10 @@ int main(int argc, char** argv) {
         ->check(within(0.0, 1e5, false))
         ->capture_default_str();
     import->add_option("--filter-radius", importOpt.filterRadius, "Filter radius of every light, metres")
+        ->check(within(0.0, 1e5, false))
+        ->capture_default_str();
+    import->add_option("--normal-bias", importOpt.normalBias,
+                       "Normal bias of every light, metres along the receiver's normal (three.js normalBias)")
         ->check(within(0.0, 1e5, false))
         ->capture_default_str();
     import->add_option("--chunk-size", importOpt.chunkSize, "Chunk side in metres (default 64)")

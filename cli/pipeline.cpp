@@ -84,6 +84,10 @@ std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdic
         if (L.filterRadius > 0)
             out.push_back(who + "filter radius " + formatNumber(L.filterRadius) +
                           " m (shadow volumes dilated by it; witnesses need no dilation)");
+        if (L.normalBias > 0)
+            out.push_back(who + "normal bias " + formatNumber(L.normalBias) +
+                          " m (receivers looked up off their surfaces: witnesses through the moved surfaces, shadow "
+                          "volumes dilated by it, the GPU stage proves only \"never lit\")");
     }
     return out;
 }
@@ -126,6 +130,20 @@ std::vector<raycast::WitnessSearch> candidateSearches(const std::vector<geometry
                                  : glm::normalize(c.lsPoint - L.position);
         raycast::WitnessSearch ws{c.object, c.group, c.light, {}};
         appendCross(c.lsPoint, d, 2e-3, ws.targets);
+        if (L.normalBias > 0) {
+            // The engine looks the receiver point's shadow up off its surface (semantics.md
+            // condition 5): aim at the lookup points too, and test the receiver's moved copy.
+            const WindowObject& ro = window.objects[c.receiverObject];
+            const std::array<glm::dvec3, 3> t = ro.lsTriangle(c.receiverTriangle);
+            const glm::dvec3 n = glm::cross(t[1] - t[0], t[2] - t[0]);
+            if (glm::length(n) > 0) {
+                const glm::dvec3 offset = (ro.flipsWinding ? -L.normalBias : L.normalBias) * glm::normalize(n);
+                appendCross(c.lsPoint + offset, d, 2e-3, ws.targets);
+                if (ro.mesh->groups[ro.mesh->triangleGroup[c.receiverTriangle]].twoSided())
+                    appendCross(c.lsPoint - offset, d, 2e-3, ws.targets);
+            }
+            ws.receiver = std::array<uint32_t, 2>{c.receiverObject, c.receiverTriangle};
+        }
         out.push_back(std::move(ws));
     }
     return out;

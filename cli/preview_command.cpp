@@ -12,6 +12,9 @@ namespace shadowcull::cli {
 
 namespace {
 
+// The frames show a shadow the masks removed (docs/cli.md), as `check` says of a GPU false cull.
+constexpr int kExitFalseCull = 1;
+
 // Six comma-separated finite numbers, or nothing.
 std::optional<std::vector<double>> parseCamera(const std::string& text) {
     std::vector<double> v;
@@ -85,11 +88,26 @@ int runPreview(const PreviewOptions& options, std::ostream& out, std::ostream& e
     out << "lit surface pixels: " << r->receiverPixels << " (" << r->coveredPixels
         << " where filterRadius covers the footprint)\n";
     out << "differing pixels: " << r->differingPixels << "\n";
-    out << "differing where filterRadius covers the footprint: " << r->differingCovered << "\n";
-    for (const gpu::DifferingPixel& d : r->listed)
-        out << "  pixel " << d.x << "," << d.y << (d.covered ? " (covered: a false cull or a modelling error)" : " (texel scale)")
-            << ": receiver " << d.receiver << " at " << d.wsReceiver.x << "," << d.wsReceiver.y << "," << d.wsReceiver.z
-            << "; caster " << d.caster << " [" << d.casterProof << "]; footprint " << d.footprint << " m\n";
+    out << "  on the culled caster's own surface: " << r->differingOnOwnSurfaces
+        << " (its self-shadowing as the bias draws it, acne: no witness)\n";
+    out << "  in the texel-edge band on kept surfaces: " << r->differingInBand
+        << " (a texel's centre ray meets a culled caster that the receiver's own light ray does not)\n";
+    out << "  where filterRadius covers the footprint: " << r->differingCovered << "\n";
+    out << "differing on kept surfaces: " << r->differingOnKeptSurfaces
+        << (r->differingOnKeptSurfaces ? " (a false cull: a shadow the engine draws is missing)" : "") << "\n";
+    out << "false culls on the culled caster's own surface (a self-shadow missing): " << r->falseCullsOnOwnSurfaces << "\n";
+    for (const gpu::FalseCullCaster& f : r->falseCulls)
+        out << "false cull: " << f.caster << ", light " << options.light << " '" << L.name << "': " << f.pixels
+            << " pixels [" << f.proof << "]\n";
+    for (const gpu::DifferingPixel& d : r->listed) {
+        out << "  pixel " << d.x << "," << d.y << " (" << gpu::pixelClassName(d.cls)
+            << (d.covered ? ", filterRadius covers the footprint" : "") << "): receiver " << d.receiver << " at "
+            << d.wsReceiver.x << "," << d.wsReceiver.y << "," << d.wsReceiver.z << "; caster " << d.caster << " ["
+            << d.casterProof << "]";
+        if (d.exactWitness) out << "; its lit point on the light's ray " << d.wsP.x << "," << d.wsP.y << "," << d.wsP.z;
+        out << "; footprint " << d.footprint << " m\n";
+    }
+    if (r->falseCullPixels() > 0) return kExitFalseCull;
     return kExitOk;
 }
 

@@ -131,7 +131,7 @@ ResultsBuilder::ResultsBuilder(const SpaceSettings& settings) : tally_(settings.
         if (L.type != LightType::Directional) r.position = L.position, r.range = L.range;
         if (L.type != LightType::Point) r.direction = L.direction;
         if (L.type == LightType::Spot) r.coneAngle = L.coneHalfAngleDeg;
-        r.bias = L.bias, r.slopeBias = L.slopeBias, r.filterRadius = L.filterRadius;
+        r.bias = L.bias, r.slopeBias = L.slopeBias, r.filterRadius = L.filterRadius, r.normalBias = L.normalBias;
     }
 }
 

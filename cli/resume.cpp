@@ -23,7 +23,7 @@ namespace shadowcull::cli {
 namespace {
 
 // Bumped whenever a change to the tool may change verdicts for the same input.
-constexpr const char* kBakeLogicVersion = "shadowcull-bake-3";
+constexpr const char* kBakeLogicVersion = "shadowcull-bake-4";
 
 // The settings, lights and the bake options that change verdicts.
 void hashSettings(Hasher& h, const SpaceSettings& S, const BakeOptions& opt) {
@@ -33,7 +33,7 @@ void hashSettings(Hasher& h, const SpaceSettings& S, const BakeOptions& opt) {
     h.pod(S.chunkSize).pod(S.terrainTolerance).pod(S.neighbours);
     for (const Light& L : S.lights) {
         h.str(L.name).pod(L.type).vec(L.direction).vec(L.position).pod(L.range).pod(L.coneHalfAngleDeg);
-        h.pod(L.bias).pod(L.slopeBias).pod(L.filterRadius);
+        h.pod(L.bias).pod(L.slopeBias).pod(L.filterRadius).pod(L.normalBias);
     }
 }
 

@@ -152,6 +152,9 @@ const char* const kMergeExitCodes =
     "Exit codes: 0 merged; 2 usage error; 3 a file is unreadable, malformed or not a shard's results; 4 OUT cannot\n"
     "be written; 7 the shards are of different bakes (inputs, options, space or shard count); 8 a shard or chunk\n"
     "is missing or given twice. Nothing is written unless the exit code is 0.\n";
+const char* const kPreviewExitCodes =
+    "Exit codes: 0 no false cull shows; 1 a shadow the engine draws is missing (a false cull, named); 2 usage\n"
+    "error; 3 bad input; 4 a file cannot be written; 5 internal error (Embree, CGAL, OpenGL).\n";
 const char* const kReportExitCodes =
     "Exit codes: 0 done; 2 usage error; 3 bad input; 4 a file cannot be written; 5 internal error (Embree,\n"
     "CGAL, OpenGL).\n";

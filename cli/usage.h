@@ -32,6 +32,7 @@ extern const char* const kExportExitCodes;
 extern const char* const kSavingsExitCodes;  // report
 extern const char* const kMergeExitCodes;
 extern const char* const kReportExitCodes;  // explain, render, sweep
+extern const char* const kPreviewExitCodes;
 extern const char* const kTopFooter;
 
 // Parse errors as "shadowcull: error: --light: must be 1 or more (got 0)" and where to read

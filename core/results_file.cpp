@@ -26,7 +26,7 @@ json lightJson(const LightRecord& L) {
     if (L.direction) j["direction"] = vecJson(*L.direction);
     for (const auto& [key, v] : {std::pair{"range", &L.range}, std::pair{"coneAngle", &L.coneAngle},
                                  std::pair{"bias", &L.bias}, std::pair{"slopeBias", &L.slopeBias},
-                                 std::pair{"filterRadius", &L.filterRadius}})
+                                 std::pair{"filterRadius", &L.filterRadius}, std::pair{"normalBias", &L.normalBias}})
         if (*v) j[key] = **v;
     return j;
 }
@@ -383,7 +383,8 @@ Expected<ResultsFile> parseResults(const std::string& path, const std::string& t
             if (L.contains("direction")) r.direction = readVec(L["direction"]);
             for (const auto& [key, v] : {std::pair{"range", &r.range}, std::pair{"coneAngle", &r.coneAngle},
                                          std::pair{"bias", &r.bias}, std::pair{"slopeBias", &r.slopeBias},
-                                         std::pair{"filterRadius", &r.filterRadius}})
+                                         std::pair{"filterRadius", &r.filterRadius},
+                                         std::pair{"normalBias", &r.normalBias}})
                 if (L.contains(key)) *v = L[key].get<double>();
             f.lights.push_back(std::move(r));
         }

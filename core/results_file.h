@@ -95,7 +95,7 @@ struct LightRecord {
     // type has none, or when the file is older than these fields.
     std::optional<glm::dvec3> position, direction;  // world; direction normalised
     std::optional<double> range, coneAngle;         // metres; spot half-angle, degrees
-    std::optional<double> bias, slopeBias, filterRadius;  // metres
+    std::optional<double> bias, slopeBias, filterRadius, normalBias;  // metres
 };
 
 // Counts over every bit of the file (what the bake's summary line prints).

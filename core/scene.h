@@ -35,6 +35,9 @@ struct Light {
     double bias = 0.0;                       // metres
     double slopeBias = 0.0;                  // metres at 45 degrees; times tan(theta)
     double filterRadius = 0.0;               // metres; > 0 when the engine filters
+    // Metres: the engine looks a receiver's shadow up at q + normalBias * n (n its unit front
+    // normal; either normal for a two-sided surface), semantics.md condition 5.
+    double normalBias = 0.0;
     int line = 0;                            // line of <light> in space.xml
 };
 

@@ -224,7 +224,7 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
     bool hasType = false, hasRange = false, hasCone = false, hasPosition = false;
     // The element each value came from, for messages that point at the line to fix.
     const tinyxml2::XMLElement *directionElement = nullptr, *rangeElement = nullptr, *coneElement = nullptr;
-    std::vector<std::pair<const tinyxml2::XMLElement*, double*>> distances;  // bias, slopeBias, filterRadius
+    std::vector<std::pair<const tinyxml2::XMLElement*, double*>> distances;  // bias, slopeBias, filterRadius, normalBias
     for (const tinyxml2::XMLElement* e = le->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
         Status s;
@@ -243,6 +243,7 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
         else if (n == "bias") { s = parseDouble(file, e, L.bias, limits::kMaxLength); distances.emplace_back(e, &L.bias); }
         else if (n == "slopeBias") { s = parseDouble(file, e, L.slopeBias, limits::kMaxLength); distances.emplace_back(e, &L.slopeBias); }
         else if (n == "filterRadius") { s = parseDouble(file, e, L.filterRadius, limits::kMaxLength); distances.emplace_back(e, &L.filterRadius); }
+        else if (n == "normalBias") { s = parseDouble(file, e, L.normalBias, limits::kMaxLength); distances.emplace_back(e, &L.normalBias); }
         if (!s) return s.error();
     }
     const std::string who = "light '" + L.name + "'";

@@ -273,6 +273,8 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
                 wo.chunk = c;
                 wo.centre = dx == 0 && dz == 0;
                 wo.label = objectLabel(cf, o);
+                wo.castsShadow = o.castsShadow;
+                w.hasNonCasters |= !o.castsShadow;
                 if (o.kind == ChunkObject::Kind::Terrain) {
                     std::shared_ptr<const Mesh>& tm = terrainMeshes[o.heightfield.get()];
                     if (!tm) tm = std::make_shared<const Mesh>(o.heightfield->toMesh());

@@ -5,8 +5,10 @@
 // same window-local numbers and so the same verdicts.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -33,6 +35,23 @@ struct Aabb {
         return c;
     }
 };
+
+// Where the ray origin + t dir (t >= 0) enters the box: 0 when it starts inside; infinity
+// when it misses the box (which rounding can do for a ray along the boundary). Slab test.
+inline double rayBoxEntry(const Aabb& box, const glm::dvec3& origin, const glm::dvec3& dir) {
+    double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < 3; ++a) {
+        if (dir[a] == 0.0) {
+            if (origin[a] < box.min[a] || origin[a] > box.max[a]) return t1;
+            continue;
+        }
+        double ta = (box.min[a] - origin[a]) / dir[a], tb = (box.max[a] - origin[a]) / dir[a];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+    }
+    return t0 <= t1 ? t0 : std::numeric_limits<double>::infinity();
+}
 
 // The corners of a box in mesh coordinates mapped by `lsFromMesh` (in corners() order).
 inline std::array<glm::dvec3, 8> placedCorners(const Aabb& msBox, const RowTransform& lsFromMesh) {
@@ -67,10 +86,18 @@ struct WindowObject {
     const Mesh* mesh = nullptr;       // model-local (terrain: chunk-local) triangles
     RowTransform lsTransform;         // mesh coordinates -> window-local
     bool flipsWinding = false;        // lsTransform mirrors: fronts are the other side
+    // False for a model with castsShadow false: the engine never draws it into a shadow map,
+    // so it blocks no light (semantics.md, condition 1) and is never a caster; it still
+    // receives. Every stage's "p is lit" and "hidden by others" leaves it out.
+    bool castsShadow = true;
     const Heightfield* heightfield = nullptr;  // terrain only
     glm::dvec3 lsTerrainOrigin{0.0};           // terrain only: its chunk origin, window-local
     Aabb lsBounds;                    // window-local bounds of all triangles
     std::string label;                // "0000ffffo.chunk model #2 (uuid)" for reports
+
+    // Whether the group's triangles block light: opaque (not alpha-tested) groups of objects
+    // that cast shadows. Everything else lets light pass (semantics.md, condition 1).
+    bool blocksLight(uint32_t group) const { return castsShadow && !mesh->groups[group].alphaTested; }
 
     // Mesh triangle `t` placed in the window: lsTransform applied to its three vertices
     // (the very doubles every stage tests).
@@ -99,6 +126,7 @@ struct BakeWindow {
     Aabb lsCentreBounds;              // the centre chunk's triangles
     bool hasAlphaTested = false;      // any alpha-tested group loaded: the alpha rule applies
     bool hasTerrain = false;          // any terrain loaded: the terrain rule applies
+    bool hasNonCasters = false;       // any object with castsShadow false loaded: light passes it
     int skippedObjects = 0;           // objects of the window that could not be loaded
     std::vector<size_t> terrainObjects;  // indices into `objects` of the terrains
 

@@ -25,6 +25,7 @@
 #include "core/format.h"
 #include "core/light_reach.h"
 #include "core/mesh_index.h"
+#include "core/rounding.h"
 #include "geometry/exact_frustum.h"
 #include "geometry/shadow_query.h"
 
@@ -37,6 +38,13 @@ namespace {
 constexpr uint32_t kClusterAtLeast = 8;
 // Caster subtrees of at least this many triangles are walked in parallel.
 constexpr uint32_t kParallelCasters = 256;
+
+// Where a shadow volume reaches a receiver: the point, window-local, and the receiver's
+// window object and mesh triangle.
+struct ReceiverPoint {
+    glm::dvec3 lsPoint{0.0};
+    uint32_t object = 0, triangle = 0;
+};
 
 struct Receiver {
     Triangle tri;  // window-local
@@ -245,6 +253,122 @@ private:
     mutable std::vector<std::atomic<std::atomic<Block*>*>> tables_;
 };
 
+// A bound on how far a receiver triangle moved by `by` metres along its unit normal, as
+// computed in double (offset = (by / |n|) n with n = (b - a) x (c - a), then added to each
+// vertex), can lie from the same move in exact arithmetic; infinity where the computed
+// normal's direction is not known to within a quarter turn. Derivation (u = 2^-53,
+// gamma(n) = n u / (1 - n u), core/rounding.h): each edge is rounded once, each cross
+// component is a difference of two products, so |n_c - n| <= E = 2 gamma(4) |e1| |e2|;
+// normalising moves a vector by at most twice its error over its length, plus the
+// rounding of the length, the division and the scaling, so |offset_c - offset| <= by
+// (2 E / |n_c| + gamma(7)); adding it to a vertex rounds by gamma(1) of the sum.
+double normalOffsetError(const Triangle& t, double by) {
+    const glm::dvec3 e1 = t[1] - t[0], e2 = t[2] - t[0];
+    const double nl = glm::length(glm::cross(e1, e2));
+    const double E = 2 * gamma(4) * glm::length(e1) * glm::length(e2);
+    if (!(E < 0.5 * nl)) return std::numeric_limits<double>::infinity();
+    double reach = 0;
+    for (const glm::dvec3& v : t) reach = std::max(reach, glm::length(v));
+    return by * (2 * E / nl + gamma(7)) + gamma(2) * (reach + by);
+}
+
+// The exact test of one receiver against one caster triangle's frustum: whether the shadow
+// reaches more than beta behind the caster at a point where the receiver looks its shadow
+// up, and the terrain rule on the part it reaches. Without a normal bias the lookup points
+// are the receiver itself. With one (semantics.md, condition 5) they are the receiver moved
+// by normalBias along its front normal, and against it for a two-sided receiver: each moved
+// triangle is tested against the frustum dilated by filterRadius plus a bound on the move's
+// rounding (normalOffsetError, at most `slack_` metres), or, where that bound is larger,
+// the receiver itself against the frustum dilated by filterRadius + normalBias (every
+// lookup point lies within normalBias of it: a superset). Frusta are built on first use.
+class ExactReach {
+public:
+    ExactReach(const BakeWindow& w, const Triangle& caster, const LightGeometry& lg, const Light& L, double margin,
+               const OccluderSource* occluders)
+        : w_(w), caster_(caster), lg_(lg), L_(L), margin_(margin), occluders_(occluders) {
+        const glm::dvec3 ext = glm::max(glm::abs(w.lsBounds.min), glm::abs(w.lsBounds.max));
+        slack_ = 1e-9 * (std::max({ext.x, ext.y, ext.z}) + L.normalBias + 1.0);
+    }
+
+    // True when the shadow reaches the receiver: `part` is the box of the reached part of
+    // the lookup surface, `at` a point of the receiver itself whose lookup is reached.
+    bool reaches(const Receiver& r, double beta, std::array<glm::dvec3, 2>& part, glm::dvec3& at) {
+        if (!(L_.normalBias > 0)) return reachesSurface(frustum(plain_, L_.filterRadius), r, r.tri, beta, glm::dvec3(0.0), part, at);
+        glm::dvec3 n = glm::cross(r.tri[1] - r.tri[0], r.tri[2] - r.tri[0]);
+        if (r.mirrored) n = -n;
+        const double nl = glm::length(n);
+        if (nl > 0 && normalOffsetError(r.tri, L_.normalBias) <= slack_) {
+            for (double sign : {1.0, -1.0}) {
+                if (sign < 0 && !r.twoSided) break;
+                const glm::dvec3 offset = (sign * L_.normalBias / nl) * n;
+                const Triangle moved{r.tri[0] + offset, r.tri[1] + offset, r.tri[2] + offset};
+                if (reachesSurface(frustum(moved_, L_.filterRadius + slack_), r, moved, beta, offset, part, at)) return true;
+            }
+            return false;
+        }
+        return reachesSurface(frustum(broad_, L_.filterRadius + L_.normalBias), r, r.tri, beta, glm::dvec3(0.0), part, at);
+    }
+
+private:
+    ExactFrustum& frustum(std::optional<ExactFrustum>& f, double dilation) {
+        if (!f) f.emplace(caster_, lg_, dilation);
+        return *f;
+    }
+
+    // `surface` is the receiver's lookup surface: the receiver moved by `offset` (window-
+    // local metres, as computed). The terrain rule applies to the receiver's own points:
+    // exactly when there is no offset; with one, by the box of the reached part moved back
+    // (grown by the slack), against the lowest ground (a superset: the exact clip against
+    // the ground triangles is skipped).
+    bool reachesSurface(ExactFrustum& f, const Receiver& r, const Triangle& surface, double beta, const glm::dvec3& offset,
+                        std::array<glm::dvec3, 2>& part, glm::dvec3& at) {
+        if (!f.reaches(surface, beta, &part, &at, occluders_)) return false;
+        at -= offset;
+        if (!w_.hasTerrain || r.terrain) return true;
+        const bool moved = offset != glm::dvec3(0.0);
+        const double grow = moved ? slack_ + margin_ : 0.0;
+        const std::array<glm::dvec3, 2> own{part[0] - offset - grow, part[1] - offset + grow};
+        // The terrain rule on the part of the receiver the shadow reaches: a rock half in
+        // the ground receives only with its part above ground. The box of that part against
+        // the lowest sample first (cheap), then exactly, the part against the terrain
+        // triangles over it (a slope under a small box differs from its lowest sample by the
+        // cell's relief, which left most terrains of a hilly map undecided).
+        if (underTerrain(w_, own, margin_)) return false;
+        if (moved) return true;
+        ground_.clear();
+        openings_.clear();
+        // Squares with no terrain (the world's edge) are openings: the rule holds over the
+        // rest of the part.
+        if (!w_.lsGroundOver(part[0].x, part[0].z, part[1].x, part[1].z, ground_, &openings_)) return true;
+        // Only the ground triangles the part may lie over and not wholly deeper than the
+        // tolerance under (both in double with the margin: a triangle left out holds no
+        // point of the part, or only points under it).
+        const double tol = w_.terrainTolerance;
+        ground_.erase(std::remove_if(ground_.begin(), ground_.end(),
+                                     [&](const Triangle& g) {
+                                         const Aabb gb = triangleBox(g);
+                                         return gb.max.x < part[0].x - margin_ || gb.min.x > part[1].x + margin_ ||
+                                                gb.max.z < part[0].z - margin_ || gb.min.z > part[1].z + margin_ ||
+                                                part[1].y < gb.min.y - tol - margin_;
+                                     }),
+                      ground_.end());
+        return f.reachesAboveGround(r.tri, beta, ground_, openings_, tol, &at, occluders_);
+    }
+
+    const BakeWindow& w_;
+    const Triangle& caster_;
+    const LightGeometry& lg_;
+    const Light& L_;  // as the scene gives it (not dilated)
+    double margin_;
+    const OccluderSource* occluders_;
+    double slack_;  // metres: the largest move rounding tested on the moved receiver
+    // Built on the first receiver that passes the broad phase and the rules: most caster
+    // triangles of a dense mesh never need one.
+    std::optional<ExactFrustum> plain_, moved_, broad_;
+    std::vector<Triangle> ground_;         // terrain under a reached part (the terrain rule)
+    std::vector<GroundOpening> openings_;  // squares with none under it
+};
+
 std::string worldPoint(const glm::dvec3& ls, const glm::dvec3& origin) {
     const glm::dvec3 p = ls + origin;
     return "(" + formatNumber(p.x) + " " + formatNumber(p.y) + " " + formatNumber(p.z) + ")";
@@ -308,10 +432,19 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
         }
         const BoxTree objectTree(objectBoxes);
 
+        // The lights as this stage tests them. A normal bias looks a receiver point q's shadow
+        // up at q' = q + normalBias * n (semantics.md condition 5): q' within the frustum
+        // dilated by filterRadius puts q within it dilated by filterRadius + normalBias (every
+        // half-space moved outward by the sum), so the receivers themselves are tested
+        // against that: a superset of both offsets, for one- and two-sided receivers alike,
+        // with no rounding of its own (facing, range and terrain stay rules on q, as the
+        // spec says). The single-occluder rule needs no dilation, so it stays off then.
+        std::vector<Light> lights = window.lsLights;
+        for (Light& L : lights) L.filterRadius += L.normalBias;
         std::vector<LightGeometry> lightGeom(size_t(cv.lightCount));
         std::vector<std::unique_ptr<ReceiverRules>> rules(size_t(cv.lightCount));
         for (int l = 0; l < cv.lightCount; ++l) {
-            const Light& L = window.lsLights[size_t(l)];
+            const Light& L = lights[size_t(l)];
             lightGeom[size_t(l)] = LightGeometry{L.type == LightType::Directional, L.direction, L.position};
             if (lightNeeded[size_t(l)]) rules[size_t(l)] = std::make_unique<ReceiverRules>(window, L, lightGeom[size_t(l)], margin, !exhaustive);
         }
@@ -352,7 +485,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 Decision& d = cv.at(task.object, task.group, l);
                 if (!wanted(d)) continue;
                 ++examined;
-                const Light& L = window.lsLights[size_t(l)];
+                const Light& L = lights[size_t(l)];
                 const LightGeometry& lg = lightGeom[size_t(l)];
                 const ReceiverRules& rl = *rules[size_t(l)];
                 const bool local = L.type != LightType::Directional;
@@ -419,8 +552,8 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     if (beta >= 0 && !made) made = makeReceiver(k, tri);
                     return beta;
                 };
-                // Opaque triangles that may lie between a directional light and a reached
-                // part: the column from the part's box back towards the light, walked as a
+                // Opaque triangles (not alpha-tested, of objects that cast shadows) that may
+                // lie between a directional light and a reached part: the column from the part's box back towards the light, walked as a
                 // receiver column is (the light reversed). The exact tests then drop a part
                 // one of them shades wholly (no caster point of it lit). Buried parts of the
                 // objects are not in the tree's boxes: fewer occluders, never a wrong one.
@@ -438,11 +571,12 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         objectTree.visit([&](const Aabb& b) { return overlaps(b, qBox) && q.mayHold(b); },
                                          [&](uint32_t k) {
                                              const WindowObject& o = window.objects[k];
+                                             if (!o.castsShadow) return false;  // light passes it
                                              const Mesh& mesh = *o.mesh;
                                              const ShadowQuery::InMesh mq = q.inMesh(o.lsTransform);
                                              return TriangleTree(mesh).visit([&](const Aabb& b) { return mq.mayHold(b); },
                                                                             [&](uint32_t tri) {
-                                                                                if (mesh.groups[mesh.triangleGroup[tri]].alphaTested) return false;
+                                                                                if (!o.blocksLight(mesh.triangleGroup[tri])) return false;
                                                                                 out.push_back(o.lsTriangle(tri));
                                                                                 return out.size() >= kMaxOccluders;
                                                                             });
@@ -452,16 +586,12 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 // One caster triangle: true when some receiver reaches its frustum (a
                 // candidate), described in `seen`. Safe to run for several triangles at once.
                 uint64_t tested = 0;  // exact tests, as a sequential walk makes them
-                auto castsOnSomething = [&](const Triangle& t, std::string& seen, uint64_t& tests, glm::dvec3& seenAt) {
+                auto castsOnSomething = [&](const Triangle& t, std::string& seen, uint64_t& tests, ReceiverPoint& seenAt) {
                     bool candidate = false;
-                    // Built on the first receiver that passes the broad phase and the rules:
-                    // most caster triangles of a dense mesh never need one.
-                    std::optional<ExactFrustum> frustum;
+                    ExactReach reach(window, t, lg, window.lsLights[size_t(l)], margin, occluderSource);
                     const FrustumFilter filter(t, lg, L.filterRadius);
                     std::optional<ShadowQuery> query;
                     if (!exhaustive) query.emplace(t, lg, L.filterRadius, margin);
-                    std::vector<Triangle> ground;  // terrain under a reached part (the terrain rule)
-                    std::vector<GroundOpening> openings;  // squares with none under it
                     auto test = [&](uint32_t k, uint32_t tri) {
                         // The double filters first: they hold for every bias >= 0, so with
                         // the least one the receiver rules (facing, range, the part above the
@@ -485,41 +615,11 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                         // its buried side).
                         if (!exhaustive && above && filter.allInFront(above->data(), above->size(), beta)) return false;
                         ++tests;
-                        if (!frustum) frustum.emplace(t, lg, L.filterRadius);
-                        std::array<glm::dvec3, 2> part;
+                        std::array<glm::dvec3, 2> part;  // the box of the reached part
                         glm::dvec3 at;  // a point of the receiver the shadow reaches (a target for witness rays)
-                        if (!frustum->reaches(r.tri, beta, &part, &at, occluderSource)) return false;
-                        // The terrain rule on the part of the receiver the shadow reaches: a
-                        // rock half in the ground receives only with its part above ground.
-                        // The box of that part against the lowest sample first (cheap), then
-                        // exactly, the part against the terrain triangles over it (a slope
-                        // under a small box differs from its lowest sample by the cell's
-                        // relief, which left most terrains of a hilly map undecided).
-                        if (window.hasTerrain && !r.terrain) {
-                            if (underTerrain(window, part, margin)) return false;
-                            ground.clear();
-                            openings.clear();
-                            // Squares with no terrain (the world's edge) are openings: the
-                            // rule holds over the rest of the part.
-                            if (window.lsGroundOver(part[0].x, part[0].z, part[1].x, part[1].z, ground, &openings)) {
-                                // Only the ground triangles the part may lie over and not
-                                // wholly deeper than the tolerance under (both in double with
-                                // the margin: a triangle left out holds no point of the part,
-                                // or only points under it).
-                                const double tol = window.terrainTolerance;
-                                ground.erase(std::remove_if(ground.begin(), ground.end(),
-                                                            [&](const Triangle& g) {
-                                                                const Aabb gb = triangleBox(g);
-                                                                return gb.max.x < part[0].x - margin || gb.min.x > part[1].x + margin ||
-                                                                       gb.max.z < part[0].z - margin || gb.min.z > part[1].z + margin ||
-                                                                       part[1].y < gb.min.y - tol - margin;
-                                                            }),
-                                             ground.end());
-                                if (!frustum->reachesAboveGround(r.tri, beta, ground, openings, tol, &at, occluderSource)) return false;
-                            }
-                        }
+                        if (!reach.reaches(r, beta, part, at)) return false;
                         candidate = true;
-                        seenAt = at;
+                        seenAt = {at, k, tri};
                         if (candidate) {
                             const WindowObject& ro = window.objects[k];
                             auto corner = [&](const glm::dvec3& p) { return worldPoint(p, window.wsOrigin); };
@@ -555,7 +655,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 };
                 bool candidate = false;
                 std::string seen;  // the candidate, for the bit's note
-                glm::dvec3 seenAt(0.0);  // and where the shadow reaches it
+                ReceiverPoint seenAt;  // and where the shadow reaches it
                 if (!exhaustive) {
                     // The caster's triangles by the clusters of its mesh tree, top down. A cluster whose column no receiver can be behind
                     // (ShadowQuery::ofCluster, clusterMisses) holds no triangle with a
@@ -598,7 +698,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                             if (local && triangleOutOfReach(placed)) return;
                             std::string note;
                             uint64_t n = 0;
-                            glm::dvec3 at(0.0);
+                            ReceiverPoint at;
                             const bool found = castsOnSomething(placed, note, n, at);
                             if (!found && n == 0) return;
                             const std::lock_guard<std::mutex> lock(firstMutex);
@@ -624,7 +724,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                     if (d.verdict == Verdict::Undecided) {
                         addNote(d, "geometry", std::move(seen));
                         const std::lock_guard<std::mutex> lock(candidatesMutex);
-                        candidates_.push_back({task.object, task.group, l, seenAt});
+                        candidates_.push_back({task.object, task.group, l, seenAt.lsPoint, seenAt.object, seenAt.triangle});
                     }
                     continue;
                 }

@@ -44,7 +44,10 @@ public:
     struct Candidate {
         size_t object = 0;  // index into ChunkVerdicts::objects
         int group = 0, light = 0;
-        glm::dvec3 lsPoint{0.0};
+        glm::dvec3 lsPoint{0.0};  // a point of the receiver the shadow volume reaches
+        // The receiver it lies on: window object and mesh triangle (where a normal bias moves
+        // the lookup point off the surface, the witness rays test that triangle's moved copy).
+        uint32_t receiverObject = 0, receiverTriangle = 0;
     };
     const std::vector<Candidate>& candidates() const { return candidates_; }
 

@@ -20,6 +20,7 @@
 #include <tinyxml2.h>
 
 #include "core/file_read.h"
+#include "core/format.h"
 #include "core/gltf_document.h"
 #include "core/results_file.h"
 #include "core/scene.h"
@@ -166,6 +167,42 @@ void checkRelativeUris(const OrderedJson& doc, const ExportOptions& opt) {
     }
 }
 
+// One entry of the root's extras.shadowcull.lights: what an engine needs to apply the bits
+// as they were baked (docs/format.md, "glTF scenes"). The values are the bake's (the results
+// file's lights); a results file older than these fields takes space.xml's, which the bake
+// read. Where both say a value they must agree: a space whose lights changed since the bake
+// would hand the engine parameters the masks were not baked for.
+OrderedJson lightEntry(const results::LightRecord& baked, const Light& space, long node, const ExportOptions& opt) {
+    const std::string who = "light " + std::to_string(baked.index) + " '" + baked.name + "'";
+    auto value = [&](const char* key, const std::optional<double>& fromResults, double fromSpace) {
+        if (fromResults && *fromResults != fromSpace)
+            fail(opt.resultsPath, who + " was baked with " + key + " " + formatNumber(*fromResults) + " but " + opt.spaceDir +
+                                      "/space.xml now says " + formatNumber(fromSpace) +
+                                      ": the space changed since this bake; bake again, then export");
+        return fromResults ? *fromResults : fromSpace;
+    };
+    OrderedJson entry;
+    entry["node"] = node >= 0 ? OrderedJson(node) : OrderedJson(nullptr);
+    entry["name"] = baked.name;
+    entry["type"] = baked.type;
+    entry["bias"] = value("bias", baked.bias, space.bias);
+    entry["slopeBias"] = value("slopeBias", baked.slopeBias, space.slopeBias);
+    entry["filterRadius"] = value("filterRadius", baked.filterRadius, space.filterRadius);
+    entry["normalBias"] = value("normalBias", baked.normalBias, space.normalBias);
+    if (space.type != LightType::Directional) entry["range"] = value("range", baked.range, space.range);
+    if (space.type == LightType::Spot) entry["coneAngle"] = value("coneAngle", baked.coneAngle, space.coneHalfAngleDeg);
+    // A light on a node is placed by the node (the engine composes it as it does the
+    // meshes); --sun has no node, so its direction is written (world, the way light travels).
+    if (node < 0 && space.type != LightType::Point) {
+        const glm::dvec3 d = baked.direction ? *baked.direction : space.direction;
+        if (baked.direction && *baked.direction != space.direction)
+            fail(opt.resultsPath, who + " was baked with another direction than " + opt.spaceDir +
+                                      "/space.xml now gives: the space changed since this bake; bake again, then export");
+        entry["direction"] = OrderedJson::array({d.x, d.y, d.z});
+    }
+    return entry;
+}
+
 ExportReport run(const ExportOptions& opt) {
     Expected<GltfDocument> doc = GltfDocument::open(opt.scenePath);
     if (!doc) throw Failure{doc.error()};
@@ -233,14 +270,14 @@ ExportReport run(const ExportOptions& opt) {
     for (size_t n : spaceNodes(opt.spaceDir))
         if (!given.count(n)) ++report.unbakedNodes;
 
+    Expected<SpaceSettings> settings = readSpaceSettings(opt.spaceDir, "");
+    if (!settings) throw Failure{settings.error()};
+    if (settings->lights.size() != res->lights.size())
+        fail(opt.resultsPath, "has " + std::to_string(res->lights.size()) + " lights but " + opt.spaceDir + "/space.xml has " +
+                                  std::to_string(settings->lights.size()) + ": the results are of another space");
     OrderedJson lights = OrderedJson::array();
-    for (size_t l = 0; l < res->lights.size(); ++l) {
-        OrderedJson entry;
-        entry["node"] = link->lightNodes[l] >= 0 ? OrderedJson(link->lightNodes[l]) : OrderedJson(nullptr);
-        entry["name"] = res->lights[l].name;
-        entry["type"] = res->lights[l].type;
-        lights.push_back(entry);
-    }
+    for (size_t l = 0; l < res->lights.size(); ++l)
+        lights.push_back(lightEntry(res->lights[l], settings->lights[l], link->lightNodes[l], opt));
     if (out.contains("extras") && !out["extras"].is_object())
         fail(opt.scenePath, "extras is not an object: no room for extras.shadowcull");
     out["extras"]["shadowcull"] = OrderedJson{{"lights", lights}};

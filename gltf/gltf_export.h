@@ -2,8 +2,10 @@
 // from (docs/format.md, "glTF scenes"). Every node that got verdicts gets
 // extras.shadowcull = {"mask": M, "groups": [m0, m1, ...]} (one mask per primitive of its
 // mesh, bit i for light i); the root gets extras.shadowcull.lights = [{"node", "name",
-// "type"}] in bit order. Nothing else in the file changes: JSON keys keep their order,
-// binary chunks are copied byte for byte.
+// "type", "bias", "slopeBias", "filterRadius", "normalBias", and "range", "coneAngle",
+// "direction" where they apply}] in bit order: the light parameters the masks were baked
+// for, which an engine's shadow pass must use for the masks to hold. Nothing else in the
+// file changes: JSON keys keep their order, binary chunks are copied byte for byte.
 #pragma once
 
 #include <string>

@@ -263,6 +263,7 @@ private:
             L.bias = extrasLength(extras, "shadowcull_bias", opt_.bias, where);
             L.slopeBias = extrasLength(extras, "shadowcull_slope_bias", opt_.slopeBias, where);
             L.filterRadius = extrasLength(extras, "shadowcull_filter_radius", opt_.filterRadius, where);
+            L.normalBias = extrasLength(extras, "shadowcull_normal_bias", opt_.normalBias, where);
             lightOut_.push_back(L);
             lightNodes_.push_back(long(ln.node));
             ++report_.sceneLights;
@@ -278,6 +279,7 @@ private:
             sun.bias = opt_.bias;
             sun.slopeBias = opt_.slopeBias;
             sun.filterRadius = opt_.filterRadius;
+            sun.normalBias = opt_.normalBias;
             lightOut_.push_back(sun);
             lightNodes_.push_back(-1);
         }
@@ -470,6 +472,7 @@ private:
             text("bias", exact(L.bias));
             text("slopeBias", exact(L.slopeBias));
             text("filterRadius", exact(L.filterRadius));
+            if (L.normalBias > 0) text("normalBias", exact(L.normalBias));
             x.OpenElement("gltf");
             if (lightNodes_[l] >= 0) {
                 x.PushAttribute("node", int64_t(lightNodes_[l]));

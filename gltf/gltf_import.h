@@ -35,7 +35,7 @@ struct ImportOptions {
     std::optional<size_t> scene;  // default: the file's default scene
     std::optional<SunAngles> sun;  // adds a directional light after the scene's lights
     // Shadow settings of every light (metres); a light node's extras override them.
-    double bias = 0.0, slopeBias = 0.0, filterRadius = 0.0;
+    double bias = 0.0, slopeBias = 0.0, filterRadius = 0.0, normalBias = 0.0;
     std::optional<double> chunkSize;  // default kDefaultChunkSize
     std::optional<int> neighbours;    // default: chosen (see docs/format.md)
     double lightCutoffLux = kDefaultLightCutoffLux;

@@ -31,7 +31,8 @@
 //     S of their farthest depth over S. That maximum (plus margins) is what P records, and
 //     D_occ is the minimum over sheets. No opaque hit on the ray comes before p (p is lit;
 //     ties do not block), so D_occ(S) >= depth(p) >= zlo(S). g's own triangles may be part
-//     of a sheet: the same holds. Alpha-tested groups are never part of a sheet.
+//     of a sheet: the same holds. Alpha-tested groups and objects that cast no shadow
+//     (light passes them, semantics.md condition 1) are never part of a sheet.
 //  4. R_max(S) > zlo(S) + bias': q's triangle is a receiver triangle (faces the light or is
 //     two-sided, not wholly out of range, not wholly under the terrain), touches S and
 //     has a farthest depth over S of at least depth(q) > depth(p) + bias. In perspective,
@@ -241,9 +242,10 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
         const double g = 2 * views[0].t;
         nearZ = dmin / (2 * std::sqrt(1 + 2 * g * g));
     }
-    // With a filter radius in perspective, or skipped objects, receivers are not bounded:
-    // only "never lit" can be proved.
-    const bool anyReceiver = w.skippedObjects > 0 || (persp && L.filterRadius > 0);
+    // With a filter radius in perspective, a normal bias (the lookup point moves off the
+    // receiver, sideways and for two-sided receivers deeper: not drawn here), or skipped
+    // objects, receivers are not bounded: only "never lit" can be proved.
+    const bool anyReceiver = w.skippedObjects > 0 || (persp && L.filterRadius > 0) || L.normalBias > 0;
     const double t = views[0].t;
     const double biasEff = persp ? L.bias / std::sqrt(1 + 2 * t * t) : L.bias;
 

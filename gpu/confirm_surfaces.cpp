@@ -39,7 +39,9 @@ ObjectSurfaces objectSurfaces(const BakeWindow& w, uint32_t k, const SurfaceLigh
         // Screen orientation: U x V = -W, so a triangle is counter-clockwise exactly when its
         // geometric normal points against the light's travel. Triangles of one class have
         // one orientation; edge-on ones are in no sheet.
-        cls[tr] = !pg.alphaTested && std::abs(f) > tol ? (f < 0 ? 1 : -1) : 0;
+        // Surfaces that let light pass (alpha-tested groups, objects that cast no shadow)
+        // are in no sheet: they block nothing.
+        cls[tr] = o.blocksLight(mesh.triangleGroup[tr]) && std::abs(f) > tol ? (f < 0 ? 1 : -1) : 0;
         if (!receiver) return;
         *receiver = false;
         if (sl.anyReceiver) return;

@@ -52,15 +52,34 @@ struct ShadowPassTiming {
     double cpuMs = 0;        // median wall time of submit + glFinish
 };
 
+// How a pixel whose shadow differs between the frames is explained (gpu/preview_pixels.h).
+enum class PixelClass {
+    FalseCull,    // a witness shows there: the bake culled a shadow the engine draws
+    OwnSurface,   // on the culled caster's own surface, no witness: its acne, not a shadow
+    Band,         // on another surface, no witness: the texel-edge band of the sampling
+};
+const char* pixelClassName(PixelClass c);
+
 // A pixel whose shadow test differs between the frames, with what explains it.
 struct DifferingPixel {
     int x = 0, y = 0;                // in the frame, row 0 at the top
     glm::dvec3 wsReceiver{0.0};      // the receiver point q seen there (world)
     std::string receiver;            // its object label and group
-    std::string caster;              // the culled caster nearest the light at the first differing texel
+    std::string caster;              // the culled caster of the witness, else the one nearest
+                                     // the light at the first differing texel
     std::string casterProof;         // the stage and reason that culled it
     double footprint = 0;            // metres: farthest texel-centre ray sampled, laterally from q
     bool covered = false;            // footprint <= the light's filterRadius
+    PixelClass cls = PixelClass::Band;
+    bool exactWitness = false;       // the exact light ray through q' is a witness (wsP on it)
+    glm::dvec3 wsP{0.0};             // world: the culled caster's lit point, when exactWitness
+};
+
+// A culled caster whose shadow the frames show missing: the bake's false cull.
+struct FalseCullCaster {
+    std::string caster;  // object label and group
+    std::string proof;   // the stage and reason that culled it
+    uint64_t pixels = 0; // false-cull pixels attributed to it
 };
 
 struct PreviewReport {
@@ -73,12 +92,22 @@ struct PreviewReport {
     uint64_t receiverPixels = 0;   // pixels showing a surface that receives the light
     uint64_t coveredPixels = 0;    // of those, where the footprint fits within filterRadius
     uint64_t differingPixels = 0;  // receiving pixels whose PCF result differs
-    uint64_t differingCovered = 0; // of those, where the footprint fits (must be 0: docs/semantics.md)
+    uint64_t differingCovered = 0; // of those, where the footprint fits (each a false cull)
+    // The differing pixels by class (they sum to differingPixels; gpu/preview_pixels.h).
+    // "Own": the surface of the culled caster that differs there; "kept": any other surface.
+    uint64_t differingOnKeptSurfaces = 0;  // false culls: a culled caster's shadow missing
+                                           // on another surface (the gate: must be 0)
+    uint64_t falseCullsOnOwnSurfaces = 0;  // false culls: a culled caster's self-shadow
+                                           // missing (must be 0 as well)
+    uint64_t differingOnOwnSurfaces = 0;   // a culled caster's own acne, no witness
+    uint64_t differingInBand = 0;          // another surface, the texel-edge band, no witness
+    std::vector<FalseCullCaster> falseCulls;  // most pixels first
     uint64_t culledCasters = 0;    // casters drawn in the first frame and not the second
     ShadowPassTiming all, kept;
-    std::vector<DifferingPixel> listed;  // covered ones first
+    std::vector<DifferingPixel> listed;  // false culls first
     std::string device;            // the GL renderer
     int pictureWidth = 0, pictureHeight = 0;
+    uint64_t falseCullPixels() const { return differingOnKeptSurfaces + falseCullsOnOwnSurfaces; }
 };
 
 // The largest PCF radius R (texels) with (R + 1/2) * texelDiagonal <= filterRadius, i.e.

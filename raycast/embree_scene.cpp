@@ -99,6 +99,7 @@ RTCScene EmbreeScenes::placeAll(const BakeWindow& w, bool opaque) {
     rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
     for (size_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
+        if (opaque && !o.castsShadow) continue;  // not in the shadow map: light passes it
         const Prototype& proto = prototype(o.mesh, o.kind == ChunkObject::Kind::Terrain);
         RTCScene placed = opaque ? proto.opaque : proto.all;
         if (!placed) continue;  // nothing opaque in it
@@ -135,7 +136,7 @@ WindowScene EmbreeScenes::buildWindow(const BakeWindow& w) {
         }
     }
     RTCScene all = placeAll(w, false);
-    WindowScene scene(all, w.hasAlphaTested ? placeAll(w, true) : all);
+    WindowScene scene(all, needsTransparencyFilter(w) ? placeAll(w, true) : all);
     // The window slid: the prototypes of meshes it no longer holds (the terrains of the
     // chunks left behind) are released, so that memory follows the window, not the world.
     const std::unordered_set<const Mesh*> loaded = w.meshes();
@@ -150,14 +151,14 @@ WindowScene EmbreeScenes::buildWindow(const BakeWindow& w) {
     return scene;
 }
 
-void skipAlphaTested(const RTCFilterFunctionNArguments* args) {
-    const auto* a = reinterpret_cast<const AlphaSkip*>(args->context);
+void skipTransparent(const RTCFilterFunctionNArguments* args) {
+    const auto* a = reinterpret_cast<const TransparentSkip*>(args->context);
     for (unsigned i = 0; i < args->N; ++i) {
         if (!args->valid[i]) continue;
         const uint32_t object = hitObject(RTCHitN_instID(args->hit, args->N, i, 0), RTCHitN_geomID(args->hit, args->N, i));
         const WindowObject& o = a->window->objects[object];
         const uint32_t group = o.mesh->triangleGroup[RTCHitN_primID(args->hit, args->N, i)];
-        if (o.mesh->groups[group].alphaTested && !(object == a->object && group == a->group)) args->valid[i] = 0;
+        if (!o.blocksLight(group) && !(object == a->object && group == a->group)) args->valid[i] = 0;
     }
 }
 

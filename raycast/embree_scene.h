@@ -17,11 +17,12 @@
 
 namespace shadowcull::raycast {
 
-// A window's two scenes. `all`: every triangle, for closest hits (p with the alpha filter,
-// the receivers behind it without). `opaque`: the same instances without their alpha-
-// tested triangles, for occlusion tests where light passes those (no filter needed, so
-// Embree's packet kernels run unhindered). The same scene twice when nothing in the
-// window is alpha-tested. Move-only; releases both.
+// A window's two scenes. `all`: every triangle, for closest hits (p with the transparency
+// filter, the receivers behind it without). `opaque`: the triangles that block light, for
+// occlusion tests (no filter needed, so Embree's packet kernels run unhindered): the
+// instances without their alpha-tested triangles, and without the objects that cast no
+// shadow (WindowObject::castsShadow). The same scene twice when everything in the window
+// blocks light. Move-only; releases both.
 class WindowScene {
 public:
     WindowScene() = default;
@@ -112,14 +113,17 @@ inline uint32_t hitObject(unsigned instID, unsigned geomID) {
     return instID != RTC_INVALID_GEOMETRY_ID ? instID : geomID;
 }
 
-// The context for finding p: rejects hits on alpha-tested groups (light passes them),
-// except on the group whose witness is sought (its own alpha-tested triangles are p).
-// Install with ctx.filter = &skipAlphaTested only when the window has alpha-tested groups.
-struct AlphaSkip {
+// The context for finding p: rejects hits on surfaces that let light pass (alpha-tested
+// groups, objects that cast no shadow: WindowObject::blocksLight), except on the group
+// whose witness is sought (its own alpha-tested triangles are p). Install with
+// ctx.filter = &skipTransparent only when the window has such surfaces
+// (needsTransparencyFilter).
+struct TransparentSkip {
     RTCIntersectContext ctx;  // first member: Embree passes &ctx back to the filter
     const BakeWindow* window = nullptr;
     uint32_t object = 0, group = 0;
 };
-void skipAlphaTested(const RTCFilterFunctionNArguments* args);
+void skipTransparent(const RTCFilterFunctionNArguments* args);
+inline bool needsTransparencyFilter(const BakeWindow& w) { return w.hasAlphaTested || w.hasNonCasters; }
 
 }  // namespace shadowcull::raycast

@@ -1,10 +1,12 @@
 // Witness rays (semantics.md, "The stages": raycast/). For each undecided (group, light),
 // rays from the light through sample points on the group. A closest-hit ray, for which
-// alpha-tested groups other than the group itself are transparent, finds p; closest-hit
+// alpha-tested groups other than the group itself and objects that cast no shadow are
+// transparent, finds p; closest-hit
 // rays along the same line from beyond depth(p) + bias then walk the surfaces behind p,
 // nearest first, until one is a valid q. The line is a witness when
-//   1. the first opaque hit is on the group (p lit; alpha-tested groups are not opaque, the
-//      group's own triangles are p itself), with p within range and cone;
+//   1. the first opaque hit is on the group (p lit; alpha-tested groups and objects that
+//      cast no shadow are not opaque, the group's own triangles are p itself), with p
+//      within range and cone;
 //   2. a later hit q lies deeper than depth(p) + bias + slopeBias * tan(theta);
 //   3. q's surface faces the light or is two-sided, q is not under terrain by more than
 //      terrainTolerance, and q is within range and cone.
@@ -105,7 +107,7 @@ namespace {
 struct Tracer {
     const BakeWindow& w;
     RTCScene scene;   // every triangle
-    RTCScene opaque;  // without alpha-tested triangles
+    RTCScene opaque;  // the triangles that block light (WindowScene::opaque)
     const RaycastOptions& opt;
     double eps;        // metres: margin on depth, range and terrain comparisons made on
                        // Embree's float distances
@@ -206,30 +208,13 @@ struct Tracer {
         return true;
     }
 
-    // Where the line enters the object's window-local bounds (0 when it starts inside;
-    // infinity when it misses them, which rounding can do for a target on the boundary).
-    static double entryDistance(const Aabb& box, const glm::dvec3& origin, const glm::dvec3& dir) {
-        double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
-        for (int a = 0; a < 3; ++a) {
-            if (dir[a] == 0.0) {
-                if (origin[a] < box.min[a] || origin[a] > box.max[a]) return t1;
-                continue;
-            }
-            double ta = (box.min[a] - origin[a]) / dir[a], tb = (box.max[a] - origin[a]) / dir[a];
-            if (ta > tb) std::swap(ta, tb);
-            t0 = std::max(t0, ta);
-            t1 = std::min(t1, tb);
-        }
-        return t0 <= t1 ? t0 : std::numeric_limits<double>::infinity();
-    }
-
     // Which of `count` (<= 16) targets on `object` may be p: false when an opaque surface
     // blocks the line before it reaches the object's bounds (by more than 2 eps), so that
     // the first opaque hit cannot be on the object. A pre-filter only: a target that passes
     // is decided by tryRay's closest hits alone. One rtcOccluded16 packet on the window's
-    // opaque scene (alpha-tested triangles left out: light passes them; the object itself
-    // cannot be hit before its bounds, so no filter is needed). The rays of a packet share
-    // the light and aim at one group. Counts the packet's rays in `raysCast`.
+    // opaque scene (alpha-tested triangles and objects that cast no shadow left out: light
+    // passes them; the object itself cannot be hit before its bounds, so no filter is
+    // needed). The rays of a packet share the light and aim at one group. Counts the packet's rays in `raysCast`.
     void clearSegments(const Light& L, uint32_t object, const glm::dvec3* targets, int count, bool* clear,
                        uint64_t* raysCast) const {
         alignas(64) RTCRay16 packet;
@@ -248,7 +233,7 @@ struct Tracer {
             double tTarget, tfar;
             if (!line(L, targets[k], origin, dir, tTarget, tfar)) continue;
             clear[k] = true;
-            const double tClear = std::min(tTarget, entryDistance(box, origin, dir)) - 2 * eps;
+            const double tClear = std::min(tTarget, rayBoxEntry(box, origin, dir)) - 2 * eps;
             if (!(tClear > 0)) continue;  // nothing to test: the line starts at the object
             valid[k] = -1;
             packet.org_x[k] = float(origin.x);
@@ -285,18 +270,94 @@ struct Tracer {
             if (valid[k] && packet.tfar[k] < 0) clear[k] = false;  // Embree sets tfar to -inf on a hit
     }
 
+    // A receiver point q and where the line looks its shadow up: the depth t of its lookup
+    // point q' on the line (semantics.md condition 5: q' = q + normalBias * n) and the margin
+    // a comparison of t needs.
+    struct Lookup {
+        glm::dvec3 q;
+        Depth depth;
+    };
+
+    // The lookups hit `h` on triangle `tri` gives the line (origin, unit dir). Without a
+    // normal bias, the hit itself (q' = q). With one, the line's crossings of the triangle
+    // moved by normalBias along its unit front normal, and against it for a two-sided group
+    // (engines differ in which normal they take), each with its q = q' - offset: a crossing
+    // within a relative 1e-9 of the moved triangle's edges, or of a moved plane within 1e-3
+    // of edge-on, is left out (rounding could put q off the triangle). Returns how many.
+    int lookupsOf(const Light& L, const glm::dvec3& origin, const glm::dvec3& dir, const Hit& h,
+                  const std::array<glm::dvec3, 3>& tri, Lookup out[2]) const {
+        if (!(L.normalBias > 0)) {
+            const Depth d = depthOf(origin, dir, h, tri);
+            out[0] = {origin + dir * d.t, d};
+            return 1;
+        }
+        const WindowObject& ro = w.objects[h.object];
+        const glm::dvec3 n = frontNormal(ro, tri);
+        const double nl = glm::length(n);
+        if (!(nl > 0)) return 0;
+        const bool twoSided = ro.mesh->groups[ro.mesh->triangleGroup[h.prim]].twoSided();
+        int count = 0;
+        for (double sign : {1.0, -1.0}) {
+            if (sign < 0 && !twoSided) break;
+            const glm::dvec3 offset = (sign * L.normalBias / nl) * n;
+            const glm::dvec3 a = tri[0] + offset, e1 = tri[1] - tri[0], e2 = tri[2] - tri[0];
+            const glm::dvec3 pv = glm::cross(dir, e2);
+            const double det = glm::dot(e1, pv);
+            if (!(std::abs(det) > 1e-3 * nl)) continue;
+            const glm::dvec3 tv = origin - a, qv = glm::cross(tv, e1);
+            const double u = glm::dot(tv, pv) / det, v = glm::dot(dir, qv) / det;
+            constexpr double kInside = 1e-9;
+            if (!(u > kInside && v > kInside && u + v < 1 - kInside)) continue;
+            const double t = glm::dot(e2, qv) / det;
+            out[count++] = {origin + dir * t - offset, Depth{t, exactEps}};
+        }
+        return count;
+    }
+
+    // Whether the lookup is a valid q for p at depth tp (margin pMargin): semantics.md
+    // conditions 2, 3 and 5, each with a margin on the side of "no witness".
+    bool receivesBehind(const Light& L, const WindowObject& ro, const Hit& h, const std::array<glm::dvec3, 3>& tri,
+                        const Lookup& lk, double tp, double pMargin, const glm::dvec3& dir) const {
+        const double margin = std::max(pMargin, lk.depth.margin);
+        const double gap = lk.depth.t - tp;
+        if (!(gap > L.bias + margin)) return false;
+        const PrimitiveGroup& rg = ro.mesh->groups[ro.mesh->triangleGroup[h.prim]];
+        glm::dvec3 n = frontNormal(ro, tri);
+        const double nl = glm::length(n);
+        if (!(nl > 0)) return false;
+        // The way light travels at q (the line's own direction unless a normal bias moved q
+        // off it towards a point light).
+        const glm::dvec3 towardsQ =
+            L.normalBias > 0 && L.type != LightType::Directional ? glm::normalize(lk.q - L.position) : dir;
+        const double cosFacing = glm::dot(n / nl, towardsQ);  // < 0: the light meets the front
+        if (!rg.twoSided() && !(cosFacing < -1e-6)) return false;
+        const double c = std::abs(cosFacing);
+        if (L.slopeBias > 0) {
+            if (!(c > 1e-6)) return false;
+            const double tanTheta = std::sqrt(std::max(0.0, 1 - c * c)) / c;
+            if (!(gap > L.bias + L.slopeBias * tanTheta + margin)) return false;
+        }
+        if (!withinReach(L, lk.q)) return false;
+        if (w.hasTerrain && ro.kind != ChunkObject::Kind::Terrain) {
+            std::optional<double> ground = w.lsTerrainHeight(lk.q.x, lk.q.z);
+            if (ground && !(lk.q.y >= *ground - w.terrainTolerance + lk.depth.margin)) return false;
+        }
+        return true;
+    }
+
     // Traces towards `target` on (object, group); returns a witness or nothing. Counts the
     // Embree calls in `raysCast`.
     std::optional<Witness> tryRay(const Light& L, uint32_t object, uint32_t group, const glm::dvec3& target,
-                                  uint64_t* raysCast) const {
+                                  const std::optional<std::array<uint32_t, 2>>& receiverHint, uint64_t* raysCast) const {
         glm::dvec3 origin, dir;
         double tTarget, tfar;
         if (!line(L, target, origin, dir, tTarget, tfar)) return std::nullopt;
-        // p: the closest hit, alpha-tested groups other than this one let light pass.
-        AlphaSkip skip;
+        // p: the closest hit; alpha-tested groups other than this one, and objects that cast no
+        // shadow, let light pass.
+        TransparentSkip skip;
         rtcInitIntersectContext(&skip.ctx);
-        if (w.hasAlphaTested) {
-            skip.ctx.filter = &skipAlphaTested;
+        if (needsTransparencyFilter(w)) {
+            skip.ctx.filter = &skipTransparent;
             skip.window = &w;
             skip.object = object;
             skip.group = group;
@@ -309,14 +370,36 @@ struct Tracer {
         const double tp = dp.t;
         const glm::dvec3 p = origin + dir * tp;
         if (!withinReach(L, p)) return std::nullopt;
+        auto witness = [&](const WindowObject& ro, const Hit& h, const Lookup& lk) {
+            Witness wit;
+            wit.wsOrigin = origin + w.wsOrigin;
+            wit.wsDirection = dir;
+            wit.wsP = p + w.wsOrigin;
+            wit.wsQ = lk.q + w.wsOrigin;
+            wit.receiver = ro.label + " group " + std::to_string(ro.mesh->triangleGroup[h.prim]);
+            wit.wsReceiverMin = ro.lsBounds.min + w.wsOrigin;
+            wit.wsReceiverMax = ro.lsBounds.max + w.wsOrigin;
+            return wit;
+        };
+        if (receiverHint && L.normalBias > 0) {
+            // The receiver the line was aimed at, by its moved copy (the line may miss it).
+            const Hit h{0.0f, (*receiverHint)[0], (*receiverHint)[1]};
+            const WindowObject& ro = w.objects[h.object];
+            const std::array<glm::dvec3, 3> tri = ro.lsTriangle(h.prim);
+            Lookup lookups[2];
+            const int count = hasRepeatedVertex(*ro.mesh, h.prim) ? 0 : lookupsOf(L, origin, dir, h, tri, lookups);
+            for (int i = 0; i < count; ++i)
+                if (receivesBehind(L, ro, h, tri, lookups[i], tp, dp.margin, dir)) return witness(ro, h, lookups[i]);
+        }
 
         // q: the receivers behind p along the same line, nearest first, from where Embree
         // may place one more than the bias behind (its distances are within eps); never
         // before the ray's origin (a p within eps of a point light, bias 0: Embree requires
-        // tnear >= 0).
+        // tnear >= 0). With a normal bias the line's point is the lookup q' of a receiver
+        // point q beside it (lookupsOf), which may lie before its own surface's hit: from p on.
         RTCIntersectContext plain;
         rtcInitIntersectContext(&plain);
-        float tnear = float(std::max(0.0, tp + L.bias - eps));
+        float tnear = float(std::max(0.0, L.normalBias > 0 ? tp - eps : tp + L.bias - eps));
         for (int k = 0; k < opt.maxHitsPerRay; ++k) {
             std::optional<Hit> next = closestHit(&plain, origin, dir, tnear, float(tfar));
             ++*raysCast;
@@ -326,37 +409,10 @@ struct Tracer {
             tnear = float(double(h.t) + 0.5 * eps);
             const WindowObject& ro = w.objects[h.object];
             const std::array<glm::dvec3, 3> tri = ro.lsTriangle(h.prim);
-            const Depth dq = depthOf(origin, dir, h, tri);
-            const double margin = std::max(dp.margin, dq.margin);
-            const double gap = dq.t - tp;
-            if (!(gap > L.bias + margin)) continue;
-            const PrimitiveGroup& rg = ro.mesh->groups[ro.mesh->triangleGroup[h.prim]];
-            glm::dvec3 n = frontNormal(ro, tri);
-            const double nl = glm::length(n);
-            if (!(nl > 0)) continue;
-            const double cosFacing = glm::dot(n / nl, dir);  // < 0: the ray meets the front
-            if (!rg.twoSided() && !(cosFacing < -1e-6)) continue;
-            const double c = std::abs(cosFacing);
-            if (L.slopeBias > 0) {
-                if (!(c > 1e-6)) continue;
-                const double tanTheta = std::sqrt(std::max(0.0, 1 - c * c)) / c;
-                if (!(gap > L.bias + L.slopeBias * tanTheta + margin)) continue;
-            }
-            const glm::dvec3 q = origin + dir * dq.t;
-            if (!withinReach(L, q)) continue;
-            if (w.hasTerrain && ro.kind != ChunkObject::Kind::Terrain) {
-                std::optional<double> ground = w.lsTerrainHeight(q.x, q.z);
-                if (ground && !(q.y >= *ground - w.terrainTolerance + dq.margin)) continue;
-            }
-            Witness wit;
-            wit.wsOrigin = origin + w.wsOrigin;
-            wit.wsDirection = dir;
-            wit.wsP = p + w.wsOrigin;
-            wit.wsQ = q + w.wsOrigin;
-            wit.receiver = ro.label + " group " + std::to_string(ro.mesh->triangleGroup[h.prim]);
-            wit.wsReceiverMin = ro.lsBounds.min + w.wsOrigin;
-            wit.wsReceiverMax = ro.lsBounds.max + w.wsOrigin;
-            return wit;
+            Lookup lookups[2];
+            const int count = lookupsOf(L, origin, dir, h, tri, lookups);
+            for (int i = 0; i < count; ++i)
+                if (receivesBehind(L, ro, h, tri, lookups[i], tp, dp.margin, dir)) return witness(ro, h, lookups[i]);
         }
         return std::nullopt;
     }
@@ -446,7 +502,8 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                                 if (!clear[k]) continue;
                                 ++lit;
                                 if (std::optional<Witness> wit =
-                                        tracer.tryRay(L, object, uint32_t(task.group), points[b + size_t(k)], &localRays)) {
+                                        tracer.tryRay(L, object, uint32_t(task.group), points[b + size_t(k)], task.receiver,
+                                                      &localRays)) {
                                     decide(d, Verdict::Kept, "raycast", why, std::move(wit));
                                     ++kept;
                                     return true;

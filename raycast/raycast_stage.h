@@ -6,8 +6,10 @@
 // 1), so an error here can cost render time, never a shadow.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,6 +43,10 @@ struct WitnessSearch {
     // With no targets: aim through the receivers in the group's shadow for `light`
     // (receiver_targets.h) instead of through the group's own samples.
     bool throughReceivers = false;
+    // A receiver triangle (window object, mesh triangle) the targets were aimed at: with a
+    // normal bias, its moved copy is tested against every line too, besides the surfaces
+    // the line hits (a lookup point off the surface lies on a line that may miss it).
+    std::optional<std::array<uint32_t, 2>> receiver = std::nullopt;
 };
 
 class RaycastStage : public Stage {

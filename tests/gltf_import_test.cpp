@@ -8,6 +8,8 @@
 #include <functional>
 #include <limits>
 
+#include <cmath>
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -131,6 +133,18 @@ TEST(GltfImport, KnownScenesImportBakeAndExportTheirMasks) {
         const std::string space = readText(dir / "space" / "space.xml");
         EXPECT_NE(space.find("<bias>0.02</bias>"), std::string::npos) << space;
         EXPECT_EQ(exported["extras"]["shadowcull"]["lights"][1]["node"], 2);  // World, Sun, Lamp
+    }
+}
+
+// Nodes that cast no shadow block no light and still receive, through glTF as through a
+// space (semantics.md condition 1), at the origin and 100 km away, turned.
+TEST(GltfImport, NodesThatCastNoShadowHideNothingAndStillReceive) {
+    for (bool moved : {false, true}) {
+        const KnownGltfScene k = nonCasterScene(moved);
+        const fs::path dir = freshTestDir(moved ? "-moved" : "");
+        const fs::path scene = dir / "scene.glb";
+        writeText(scene, k.scene.glb());
+        expectKnownMasks(k, importBakeExport(dir, scene));
     }
 }
 
@@ -337,3 +351,96 @@ TEST(GltfImport, NodeUuidsMapBack) {
 }
 
 }  // namespace
+
+// `shadowcull export`'s root extras.shadowcull.lights: each light's entry carries the
+// parameters the masks were baked for (bias, slopeBias, filterRadius, normalBias, range and
+// coneAngle where they apply, and the direction of a light without a node), so that an
+// engine (examples/threejs) draws its shadows with them; a space whose lights changed
+// since the bake is refused rather than exported with parameters the masks do not hold for.
+namespace {
+
+// The courtyard (sun, lamp, torch on nodes) with a normal bias on the lamp's node,
+// imported with shared settings and a --sun after the scene's lights, then baked.
+struct Baked {
+    fs::path dir, scene, space, results;
+};
+
+Baked importAndBake() {
+    Baked b;
+    b.dir = freshTestDir();
+    KnownGltfScene k = courtyardScene();
+    for (json& node : k.scene.doc()["nodes"])
+        if (node.value("name", "") == "Lamp") node["extras"]["shadowcull_normal_bias"] = 0.04;
+    b.scene = b.dir / "scene.glb", b.space = b.dir / "space", b.results = b.dir / "results.json";
+    writeText(b.scene, k.scene.glb());
+    CliRun r = cli(b.dir, "import " + q(b.scene) + " " + q(b.space) +
+                           " --sun 90,30 --bias 0.05 --slope-bias 0.01 --filter-radius 0.02");
+    EXPECT_EQ(r.code, 0) << r.err;
+    r = cli(b.dir, "bake " + q(b.space) + " --quiet --results " + q(b.results));
+    EXPECT_EQ(r.code, 0) << r.err;
+    return b;
+}
+
+}  // namespace
+
+TEST(GltfExportLights, EachLightCarriesTheParametersItWasBakedWith) {
+    const Baked b = importAndBake();
+    const fs::path out = b.dir / "exported.glb";
+    const CliRun r = cli(b.dir, "export " + q(b.space) + " " + q(b.results) + " --gltf " + q(b.scene) + " --out " + q(out));
+    ASSERT_EQ(r.code, 0) << r.err;
+    const json lights = readGltf(out).doc["extras"]["shadowcull"]["lights"];
+    ASSERT_EQ(lights.size(), 4u) << lights.dump();
+
+    // Bit 0: the sun on node 1: the shared settings; placed by its node, so no direction.
+    const json& sun = lights[0];
+    EXPECT_EQ(sun["node"], 1);
+    EXPECT_EQ(sun["type"], "directional");
+    EXPECT_EQ(sun["bias"], 0.05);
+    EXPECT_EQ(sun["slopeBias"], 0.01);
+    EXPECT_EQ(sun["filterRadius"], 0.02);
+    EXPECT_EQ(sun["normalBias"], 0.0);
+    for (const char* absent : {"range", "coneAngle", "direction"}) EXPECT_FALSE(sun.contains(absent)) << absent;
+
+    // Bit 1: the lamp (point): its node's own bias and normal bias, and its range.
+    const json& lamp = lights[1];
+    EXPECT_EQ(lamp["node"], 2);
+    EXPECT_EQ(lamp["type"], "point");
+    EXPECT_EQ(lamp["bias"], 0.02);
+    EXPECT_EQ(lamp["normalBias"], 0.04);
+    EXPECT_EQ(lamp["range"], 6.0);
+    EXPECT_FALSE(lamp.contains("coneAngle"));
+    EXPECT_FALSE(lamp.contains("direction"));
+
+    // Bit 2: the torch (spot): range and cone half-angle in degrees (outerConeAngle 0.5 rad).
+    const json& torch = lights[2];
+    EXPECT_EQ(torch["type"], "spot");
+    EXPECT_EQ(torch["range"], 20.0);
+    EXPECT_NEAR(torch["coneAngle"].get<double>(), 0.5 * 180.0 / M_PI, 1e-9);
+
+    // Bit 3: --sun 90,30 has no node: the way its light travels, from +X, 30 degrees up.
+    const json& extra = lights[3];
+    EXPECT_TRUE(extra["node"].is_null());
+    EXPECT_EQ(extra["name"], "sun");
+    ASSERT_TRUE(extra["direction"].is_array());
+    const double pi = M_PI;
+    EXPECT_NEAR(extra["direction"][0].get<double>(), -std::cos(pi / 6), 1e-12);
+    EXPECT_NEAR(extra["direction"][1].get<double>(), -std::sin(pi / 6), 1e-12);
+    EXPECT_NEAR(extra["direction"][2].get<double>(), 0.0, 1e-12);
+    EXPECT_EQ(extra["bias"], 0.05);
+}
+
+TEST(GltfExportLights, ASpaceWhoseLightsChangedSinceTheBakeIsRefused) {
+    const Baked b = importAndBake();
+    const fs::path xml = b.space / "space.xml";
+    std::string text = readText(xml);
+    const std::string was = "<bias>0.02</bias>";  // the lamp's, from its node's extras
+    ASSERT_NE(text.find(was), std::string::npos) << text;
+    text.replace(text.find(was), was.size(), "<bias>0.5</bias>");
+    writeText(xml, text);
+    const fs::path out = b.dir / "exported.glb";
+    const CliRun r = cli(b.dir, "export " + q(b.space) + " " + q(b.results) + " --gltf " + q(b.scene) + " --out " + q(out));
+    EXPECT_EQ(r.code, 3) << r.err;
+    EXPECT_NE(r.err.find("light 2 'lamp' was baked with bias 0.02 but"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("bake again"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out));
+}

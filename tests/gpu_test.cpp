@@ -414,7 +414,7 @@ void expectNeverLit(const Decision& d) {
 
 TEST(GpuConfirm, ProvesACubeUnderASlabIsNeverLit) {
     REQUIRE_GL();
-    std::unique_ptr<Loaded> l = load(hiddenUnderRoof(false));
+    std::unique_ptr<Loaded> l = load(hiddenUnderRoof(Roof::Opaque));
     ASSERT_TRUE(l);
     gpu::GpuConfirmStage stage({256});
     runStage(stage, *l);
@@ -470,7 +470,7 @@ TEST(GpuConfirm, CasterTrianglesBeyondRangeAreNotDrawn) {
 
 TEST(GpuConfirm, AlphaTestedRoofLetsLightThrough) {
     REQUIRE_GL();
-    std::unique_ptr<Loaded> l = load(hiddenUnderRoof(true));
+    std::unique_ptr<Loaded> l = load(hiddenUnderRoof(Roof::AlphaTested));
     ASSERT_TRUE(l);
     gpu::GpuConfirmStage stage({256});
     runStage(stage, *l);
@@ -563,7 +563,7 @@ TEST(GpuConfirm, LampsTouchingOrGrazingGeometry) {
     REQUIRE_GL();
     // A lamp on the roof's top face: no near plane lies below the geometry; the light is
     // left alone (its bits stay undecided and are not examined).
-    SpaceBuilder touching = hiddenUnderRoof(false);
+    SpaceBuilder touching = hiddenUnderRoof(Roof::Opaque);
     touching.addLight(LightSpec::point("onRoof", {52, 3.2, 52}, 20));
     std::unique_ptr<Loaded> l = load(touching, "touching");
     ASSERT_TRUE(l);
@@ -1018,7 +1018,7 @@ std::vector<unsigned char> readPngRgb(const std::string& path, int& w, int& h) {
 
 TEST(GpuRender, ColoursTheLightViewByVerdict) {
     REQUIRE_GL();
-    std::unique_ptr<Loaded> l = load(hiddenUnderRoof(false));
+    std::unique_ptr<Loaded> l = load(hiddenUnderRoof(Roof::Opaque));
     ASSERT_TRUE(l);
     // Terrain culled (red), roof kept (green), cube undecided (yellow, if visible at all).
     decide(l->verdicts.at(l->object("terrain"), 0, 0), Verdict::Culled, "test", "");

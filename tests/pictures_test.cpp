@@ -167,7 +167,7 @@ TEST(RenderPicture, SunViewIsFramedOnTheChunkAndTheLegendCountsTheVerdicts) {
 TEST(RenderPicture, OutlinesTheGroupsAskedForEvenWhenHidden) {
     REQUIRE_GL();
     const fs::path dir = freshTestDir();
-    hiddenUnderRoof(false).write((dir / "space").string());
+    hiddenUnderRoof(Roof::Opaque).write((dir / "space").string());
     cli::BakeOptions opt;
     opt.spaceDir = (dir / "space").string();
     opt.write = false;

@@ -97,21 +97,25 @@ Expected<cli::ChunkBake> bake(const fs::path& space, ChunkCoord c) {
 std::string describe(const gpu::PreviewReport& r) {
     std::ostringstream s;
     s << r.differingPixels << " differing pixels, " << r.differingCovered << " where the filter covers the footprint (of "
-      << r.coveredPixels << " covered, " << r.receiverPixels << " lit); PCF " << r.pcfRadius << ", footprint "
+      << r.coveredPixels << " covered, " << r.receiverPixels << " lit); on kept surfaces " << r.differingOnKeptSurfaces
+      << " (false culls), on culled casters' own surfaces " << r.differingOnOwnSurfaces << " (+" << r.falseCullsOnOwnSurfaces
+      << " with a witness), in the band " << r.differingInBand << "; PCF " << r.pcfRadius << ", footprint "
       << r.worstFootprint << " m";
     for (const gpu::DifferingPixel& d : r.listed)
-        s << "\n  pixel " << d.x << "," << d.y << (d.covered ? " COVERED" : " texel scale") << ": receiver " << d.receiver
+        s << "\n  pixel " << d.x << "," << d.y << " " << gpu::pixelClassName(d.cls) << (d.covered ? " COVERED" : "")
+          << ": receiver " << d.receiver
           << " at (" << d.wsReceiver.x << ", " << d.wsReceiver.y << ", " << d.wsReceiver.z << "), caster " << d.caster
           << " [" << d.casterProof << "], footprint " << d.footprint << " m";
     return s.str();
 }
 
 struct Totals {
-    uint64_t previews = 0, covered = 0, culled = 0, differing = 0;
+    uint64_t previews = 0, covered = 0, culled = 0, differing = 0, ownSurface = 0, band = 0;
 };
 
-// Every light of `chunk` from every camera: no differing pixel where the filter covers the
-// footprint. Returns what was seen, so that callers can check the run was not vacuous.
+// Every light of `chunk` from every camera: no false cull shows (no differing pixel on a kept
+// surface, none where the filter covers the footprint, none on a culled caster's own surface
+// with a witness). Returns what was seen, so that callers can check the run was not vacuous.
 Totals checkChunk(const fs::path& space, ChunkCoord chunk, int shadowResolution, const fs::path& pictures) {
     Totals t;
     Expected<cli::ChunkBake> cb = bake(space, chunk);
@@ -137,6 +141,13 @@ Totals checkChunk(const fs::path& space, ChunkCoord chunk, int shadowResolution,
             t.covered += r->coveredPixels;
             t.culled += r->culledCasters;
             t.differing += r->differingPixels;
+            t.ownSurface += r->differingOnOwnSurfaces;
+            t.band += r->differingInBand;
+            EXPECT_EQ(r->differingPixels, r->differingOnKeptSurfaces + r->falseCullsOnOwnSurfaces +
+                                              r->differingOnOwnSurfaces + r->differingInBand);
+            EXPECT_EQ(r->falseCullPixels(), 0u)
+                << space.filename().string() << " " << chunkFileName(chunk) << ", light " << l + 1 << " '" << L.name
+                << "', camera " << cam.name << ": " << describe(*r);
             EXPECT_EQ(r->differingCovered, 0u)
                 << space.filename().string() << " " << chunkFileName(chunk) << ", light " << l + 1 << " '" << L.name
                 << "', camera " << cam.name << ": " << describe(*r);
@@ -183,17 +194,20 @@ TEST(Preview, SampleSpaceFramesAgreeWhereTheFilterCoversTheFootprint) {
     EXPECT_GT(all.culled, 0u);        // and casters were culled in those frames
 }
 
-// filterRadius 0 (the sample as shipped): no pixel is covered, the frames may differ at texel
-// scale. The counts are printed for docs/performance.md.
-TEST(Preview, SampleSpaceWithoutFilterDiffersAtTexelScaleOnly) {
+// filterRadius 0 (the sample as shipped): no pixel is covered, and still no false cull shows:
+// the frames differ only on culled casters' own surfaces (their acne) and in the texel-edge
+// band. The counts are printed for docs/semantics.md.
+TEST(Preview, SampleSpaceWithoutFilterShowsNoFalseCull) {
     REQUIRE_GL();
     const fs::path dir = freshTestDir();
     const fs::path space = dir / "space";
     sampleSpace().write(space.string());
     const Totals t = checkChunk(space, ChunkCoord{0, 0}, 1024, dir);
     EXPECT_EQ(t.covered, 0u);
+    EXPECT_GT(t.culled, 0u);
     std::cout << "sample, filterRadius 0, chunk 00000000o: " << t.differing << " differing pixels over " << t.previews
-              << " previews of 320 x 240\n";
+              << " previews of 320 x 240: " << t.ownSurface << " on culled casters' own surfaces, " << t.band
+              << " in the texel-edge band, 0 false culls\n";
 }
 
 // A generated forest world (bench/world_gen: terrain, alpha-tested trees, buried chests,
@@ -216,6 +230,44 @@ TEST(Preview, GeneratedWorldFramesAgreeWhereTheFilterCoversTheFootprint) {
     EXPECT_GT(t.culled, 0u);
 }
 
+namespace {
+
+// Every kept model group of the centre chunk for `light`, culled by hand (a deliberate
+// false cull). Returns how many.
+int cullKeptModels(ChunkVerdicts& cv, int light) {
+    int flipped = 0;
+    for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+        const ObjectVerdicts& ov = cv.objects[oi];
+        if (ov.terrain) continue;
+        for (int g = 0; g < ov.groupCount; ++g)
+            if (cv.at(oi, g, light).verdict == Verdict::Kept) {
+                cv.at(oi, g, light).verdict = Verdict::Culled;
+                ++flipped;
+            }
+    }
+    return flipped;
+}
+
+}  // namespace
+
+namespace {
+
+// The sample's chunk 00000000o baked, then every model the sun kept marked culled by hand
+// (each has a witness: its shadow shows), previewed for the sun from above.
+Expected<gpu::PreviewReport> previewWithKeptModelsCulled(const fs::path& space, const fs::path& png) {
+    Expected<cli::ChunkBake> cb = bake(space, ChunkCoord{0, 0});
+    if (!cb) return cb.error();
+    EXPECT_GT(cullKeptModels(cb->verdicts, 0), 0);
+    gpu::PreviewRequest rq;
+    rq.light = 0;
+    rq.shadowResolution = 1024;
+    rq.width = 320, rq.height = 240;
+    rq.timingRepeats = 1;
+    return gpu::renderShadowPreview(cb->window, cb->verdicts, rq, png.string());
+}
+
+}  // namespace
+
 // The detector: a caster that does cast a visible shadow (the sample's house, kept with a
 // witness for the sun), marked culled by hand, must show as differing pixels where the
 // filter covers the footprint, with that caster named.
@@ -225,26 +277,7 @@ TEST(Preview, DeliberateFalseCullIsCaughtAndNamed) {
     const fs::path space = dir / "space";
     sampleSpace().write(space.string());
     setFilterRadii(space, 1.2, 0.15);
-    Expected<cli::ChunkBake> cb = bake(space, ChunkCoord{0, 0});
-    ASSERT_TRUE(cb) << (cb ? "" : cb.error().what());
-    // Every kept model group of the centre chunk for the sun, culled by hand.
-    int flipped = 0;
-    for (size_t oi = 0; oi < cb->verdicts.objects.size(); ++oi) {
-        const ObjectVerdicts& ov = cb->verdicts.objects[oi];
-        if (ov.terrain) continue;
-        for (int g = 0; g < ov.groupCount; ++g)
-            if (cb->verdicts.at(oi, g, 0).verdict == Verdict::Kept) {
-                cb->verdicts.at(oi, g, 0).verdict = Verdict::Culled;
-                ++flipped;
-            }
-    }
-    ASSERT_GT(flipped, 0);
-    gpu::PreviewRequest rq;
-    rq.light = 0;
-    rq.shadowResolution = 1024;
-    rq.width = 320, rq.height = 240;
-    rq.timingRepeats = 1;
-    Expected<gpu::PreviewReport> r = gpu::renderShadowPreview(cb->window, cb->verdicts, rq, (dir / "false.png").string());
+    Expected<gpu::PreviewReport> r = previewWithKeptModelsCulled(space, dir / "false.png");
     ASSERT_TRUE(r) << r.error().what();
     EXPECT_GT(r->differingCovered, 50u) << describe(*r);
     ASSERT_FALSE(r->listed.empty());
@@ -252,6 +285,25 @@ TEST(Preview, DeliberateFalseCullIsCaughtAndNamed) {
     EXPECT_NE(r->listed[0].caster.find("00000000o.chunk"), std::string::npos) << describe(*r);
     EXPECT_FALSE(r->listed[0].receiver.empty());
     EXPECT_LT(r->kept.triangles, r->all.triangles);
+}
+
+// The same with filterRadius 0 (the sample as shipped), where every differing texel lies
+// beyond the filter: the exact light rays through the receivers still catch the missing
+// shadows on kept surfaces and name the casters.
+TEST(Preview, DeliberateFalseCullWithoutFilterIsCaughtAndNamed) {
+    REQUIRE_GL();
+    const fs::path dir = freshTestDir();
+    const fs::path space = dir / "space";
+    sampleSpace().write(space.string());
+    Expected<gpu::PreviewReport> r = previewWithKeptModelsCulled(space, dir / "false0.png");
+    ASSERT_TRUE(r) << r.error().what();
+    EXPECT_EQ(r->coveredPixels, 0u);
+    EXPECT_GT(r->differingOnKeptSurfaces, 50u) << describe(*r);
+    ASSERT_FALSE(r->falseCulls.empty()) << describe(*r);
+    EXPECT_NE(r->falseCulls[0].caster.find("00000000o.chunk model"), std::string::npos) << r->falseCulls[0].caster;
+    ASSERT_FALSE(r->listed.empty());
+    EXPECT_EQ(r->listed[0].cls, gpu::PixelClass::FalseCull) << describe(*r);
+    EXPECT_TRUE(r->listed[0].exactWitness) << describe(*r);
 }
 
 // The command as a user runs it: the lines it promises, and the picture.
@@ -270,6 +322,7 @@ TEST(Preview, CommandPrintsDifferingPixelsAndPassCosts) {
     std::ostringstream out, err;
     EXPECT_EQ(cli::runPreview(o, out, err), 0) << err.str();
     EXPECT_NE(out.str().find("\ndiffering pixels: "), std::string::npos) << out.str();
+    EXPECT_NE(out.str().find("\ndiffering on kept surfaces: 0\n"), std::string::npos) << out.str();
     EXPECT_NE(out.str().find("shadow pass, all casters:  "), std::string::npos) << out.str();
     EXPECT_NE(out.str().find("shadow pass, kept casters: "), std::string::npos) << out.str();
     EXPECT_TRUE(fs::exists(o.outPath));
@@ -330,7 +383,11 @@ TEST(Preview, PlateOverAHoleDiffersAtTexelScaleOnlyWithoutFilter) {
     EXPECT_EQ(r0.culledCasters, 5u);  // the plate, and the floor's four quads (nothing under them)
     EXPECT_GT(r0.differingPixels, 0u) << describe(r0);  // texel scale: the floor at the hole's rim
     EXPECT_EQ(r0.differingCovered, 0u);
+    // No witness: the plate's texel-edge band on the floor (culled too, but another caster).
+    EXPECT_EQ(r0.falseCullPixels(), 0u) << describe(r0);
+    EXPECT_EQ(r0.differingInBand, r0.differingPixels) << describe(r0);
     for (const gpu::DifferingPixel& d : r0.listed) {
+        EXPECT_EQ(d.cls, gpu::PixelClass::Band);
         EXPECT_NE(d.caster.find("model #1"), std::string::npos) << d.caster;  // the plate
         EXPECT_LT(std::abs(std::max(std::abs(d.wsReceiver.x - 50), std::abs(d.wsReceiver.z - 50)) - 1.17), 0.35)
             << "not at the hole's rim: " << d.wsReceiver.x << ", " << d.wsReceiver.z;

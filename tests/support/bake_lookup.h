@@ -23,8 +23,12 @@ inline const std::vector<NamedScene>& knownAnswerScenes() {
         {"rangeAndCone", rangeAndCone},
         {"thinRod", thinRod},
         {"twoLightsMasks", twoLightsMasks},
-        {"hiddenUnderOpaqueRoof", [] { return hiddenUnderRoof(false); }},
-        {"hiddenUnderAlphaRoof", [] { return hiddenUnderRoof(true); }},
+        {"hiddenUnderOpaqueRoof", [] { return hiddenUnderRoof(Roof::Opaque); }},
+        {"hiddenUnderAlphaRoof", [] { return hiddenUnderRoof(Roof::AlphaTested); }},
+        {"underNonCastingRoof", [] { return hiddenUnderRoof(Roof::CastsNoShadow); }},
+        {"cubeOverNonCastingFloor", cubeOverNonCastingFloor},
+        {"cubeBesideWall", [] { return cubeBesideWall(0.0); }},
+        {"cubeBesideWallNormalBias", [] { return cubeBesideWall(0.1); }},
     };
     return s;
 }

@@ -199,13 +199,22 @@ glm::dquat aimMinusZ(const glm::dvec3& direction) {
     return glm::normalize(glm::dquat(1.0 + glm::dot(a, b), axis.x, axis.y, axis.z));
 }
 
+namespace {
+
+// The root every known scene hangs under: identity, or (`moved`) 100 km away and turned by
+// 37 degrees.
+long worldRoot(GltfSceneBuilder& b, bool moved) {
+    return long(b.node("World", -1, moved ? glm::dvec3(100000.0, 0.0, -100000.0) : glm::dvec3(0.0),
+                       moved ? glm::angleAxis(glm::radians(37.0), glm::dvec3(0, 1, 0)) : glm::dquat(1, 0, 0, 0)));
+}
+
+}  // namespace
+
 KnownGltfScene courtyardScene(bool moved) {
     KnownGltfScene k;
     k.name = moved ? "courtyard-moved" : "courtyard";
     GltfSceneBuilder& b = k.scene;
-    // Everything hangs under `world`: identity, or 100 km away and turned by 37 degrees.
-    const long world = long(b.node("World", -1, moved ? glm::dvec3(100000.0, 0.0, -100000.0) : glm::dvec3(0.0),
-                                   moved ? glm::angleAxis(glm::radians(37.0), glm::dvec3(0, 1, 0)) : glm::dquat(1, 0, 0, 0)));
+    const long world = worldRoot(b, moved);
     // Lights, in bit order: sun (bit 0), lamp (bit 1), torch (bit 2).
     const size_t sun = b.node("Sun", world, glm::dvec3(0, 50, 0), aimMinusZ({0.3, -1.0, 0.2}));
     b.setLight(sun, {{"type", "directional"}, {"name", "sun"}, {"intensity", 3.0}});
@@ -261,6 +270,46 @@ KnownGltfScene courtyardScene(bool moved) {
     const size_t quiet = place("NoShadowCube", cube, world, {-5, 0.55, 5});
     b.setExtras(quiet, {{"shadowcull_casts_shadow", false}});
     k.expected["NoShadowCube"] = {0};
+    return k;
+}
+
+KnownGltfScene nonCasterScene(bool moved) {
+    KnownGltfScene k;
+    k.name = moved ? "non-casters-moved" : "non-casters";
+    GltfSceneBuilder& b = k.scene;
+    const long world = worldRoot(b, moved);
+    const size_t sun = b.node("Sun", world, glm::dvec3(0, 50, 0), aimMinusZ({0.3, -1.0, 0.2}));
+    b.setLight(sun, {{"type", "directional"}, {"name", "sun"}, {"intensity", 3.0}});
+    k.lightNames = {"sun"};
+    const size_t cube = b.mesh("Cube", {cubePrimitive()});
+    const size_t ground = b.mesh("Ground", {squarePrimitive(30.0f)});
+    const size_t slab = b.mesh("Slab", {cubePrimitive(glm::vec3(0.0f), 1.0f)});  // scaled into a slab
+    auto place = [&](const std::string& name, size_t mesh, const glm::dvec3& t, const glm::dvec3& s = glm::dvec3(1.0)) {
+        const size_t n = b.node(name, world, t, glm::dquat(1, 0, 0, 0), s);
+        b.setMesh(n, mesh);
+        return n;
+    };
+    place("Ground", ground, {0, 0, 0});
+    k.expected["Ground"] = {0};
+    // Traced back towards the sun, every point of a cube at (x, 0.05..1.05, z) crosses
+    // y = 3 within 1 m of (x - 0.6, z - 0.4): inside a 6 m roof centred above it.
+    place("OpenCube", cube, {-10, 0.55, 0});
+    const size_t glass = place("GlassRoof", slab, {-10, 3.1, 0}, {6, 0.2, 6});
+    b.setExtras(glass, {{"shadowcull_casts_shadow", false}});
+    k.expected["OpenCube"] = {1};
+    k.expected["GlassRoof"] = {0};
+    place("HiddenCube", cube, {10, 0.55, 0});
+    place("SolidRoof", slab, {10, 3.1, 0}, {6, 0.2, 6});
+    k.expected["HiddenCube"] = {0};
+    k.expected["SolidRoof"] = {1};
+    // A cube floating 6 m over a floor that casts no shadow, beyond the ground's edge
+    // (z 30): nothing but the floor below it. Its rays land on the floor's top within
+    // x 1.3..2.6, z 43.7..44.9 (floor: x -4..4, z 41..49): it receives, so the cube is 1.
+    const size_t floor = place("GlassFloor", slab, {0, 3.1, 45}, {8, 0.2, 8});
+    b.setExtras(floor, {{"shadowcull_casts_shadow", false}});
+    place("FloatingCube", cube, {0, 9.5, 43});
+    k.expected["GlassFloor"] = {0};
+    k.expected["FloatingCube"] = {1};
     return k;
 }
 

@@ -71,4 +71,11 @@ struct KnownGltfScene {
 // `moved`: the whole scene under a root 100 km away and turned by 37 degrees.
 KnownGltfScene courtyardScene(bool moved = false);
 
+// "non-casters": a sun, a ground, and objects that cast no shadow by
+// extras.shadowcull_casts_shadow = false (the engine never draws them into its shadow map,
+// so they block no light; semantics.md condition 1): a cube under such a roof (its shadow on
+// the ground: 1), the same cube under a roof that casts (hidden: 0), and a floating cube over
+// such a floor, which still receives (1). `moved` as for the courtyard.
+KnownGltfScene nonCasterScene(bool moved = false);
+
 }  // namespace shadowcull::testing

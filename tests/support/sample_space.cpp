@@ -217,7 +217,8 @@ SpaceBuilder sampleSpace() {
                 b.addModel("tree", placed({x, groundUnder(b, x, z, 0.3) - 0.2, z}, rng.uniform(0, 360)));
             }
         }
-    // Pebbles marked castsShadow=false: still occluders and receivers, never casters.
+    // Pebbles marked castsShadow=false: never casters, and not in the shadow map, so they block
+    // no light (semantics.md condition 1); still receivers.
     for (int k = 0; k < 2; ++k) {
         const auto [x, z] = freeSpot(1, 0, 1.0);
         b.addModel("rock_b", placed({x, groundUnder(b, x, z, 0.3) - 0.05, z}, 40.0 * k, 0.3), "", false);

@@ -664,6 +664,7 @@ std::string SpaceBuilder::spaceXml(const WorldTransform& wt) const {
         o << "    <bias> " << formatNumber(l.bias) << " </bias>\n";
         o << "    <slopeBias> " << formatNumber(l.slopeBias) << " </slopeBias>\n";
         o << "    <filterRadius> " << formatNumber(l.filterRadius) << " </filterRadius>\n";
+        if (l.normalBias > 0) o << "    <normalBias> " << formatNumber(l.normalBias) << " </normalBias>\n";
         o << "  </light>\n";
     }
     o << "</space>\n";
@@ -912,20 +913,65 @@ SpaceBuilder cubeBesideLamp(double range) {
     return b;
 }
 
-SpaceBuilder hiddenUnderRoof(bool roofAlphaTested) {
+SpaceBuilder hiddenUnderRoof(Roof roof) {
     SpaceBuilder b = flatWorldWithCube();
     GroupSpec roofGroup = GroupSpec::named("roof");
-    if (roofAlphaTested) roofGroup.alphaTestOverride = true;  // exercises the .model override path
+    if (roof == Roof::AlphaTested) roofGroup.alphaTestOverride = true;  // exercises the .model override path
     b.addMesh("roof", MeshSpec::box({-10, 0, -10}, {10, 0.2, 10}, roofGroup));
     b.addLight(LightSpec::directional("sun", kTiltedSun));
     const std::string cube = b.addModel("cube", Affine::translation({50, 0, 50}), fixedUuid(1));
-    const std::string roof = b.addModel("roof", Affine::translation({50, 3, 50}), fixedUuid(2));
+    const std::string roofKey = b.addModel("roof", Affine::translation({50, 3, 50}), fixedUuid(2),
+                                           roof == Roof::CastsNoShadow ? std::optional<bool>(false) : std::nullopt);
     // Traced back towards the sun, every point of the cube (x 50..51, z 50..51, y 0..1)
     // crosses y = 3 within x 49.1..50.4, z 49.4..50.6: inside the roof (40..60).
-    b.expect(cube, 0, roofAlphaTested ? 1u : 0u,
-             roofAlphaTested ? "light passes the alpha-tested roof; shadow on terrain" : "fully hidden under the roof");
-    b.expect(roof, 0, 1, "roof's shadow falls on the cube and the terrain");
+    switch (roof) {
+        case Roof::Opaque:
+            b.expect(cube, 0, 0, "fully hidden under the roof");
+            b.expect(roofKey, 0, 1, "roof's shadow falls on the cube and the terrain");
+            break;
+        case Roof::AlphaTested:
+            b.expect(cube, 0, 1, "light passes the alpha-tested roof; shadow on terrain");
+            b.expect(roofKey, 0, 1, "roof's shadow falls on the cube and the terrain");
+            break;
+        case Roof::CastsNoShadow:
+            b.expect(cube, 0, 1, "the roof is not in the shadow map: light passes it; shadow on terrain");
+            b.expect(roofKey, 0, 0, "castsShadow false: never a caster");
+            break;
+    }
     b.expect(SpaceBuilder::terrainKey(0, 0), 0, 0, "nothing below the flat terrain");
+    return b;
+}
+
+SpaceBuilder cubeBesideWall(double normalBias) {
+    SpaceBuilder b;
+    b.addMesh("cube", MeshSpec::box({0, 0, 0}, {1, 1, 1}));
+    // Facing -x: (b - a) x (c - a) = (0,0,3) x (0,1.5,3) = (-4.5, 0, 0).
+    b.addMesh("wall", MeshSpec::quad({0, 0, 0}, {0, 0, 3}, {0, 1.5, 3}, {0, 1.5, 0}, GroupSpec::named("wall")));
+    b.addLight(LightSpec::directional("sun", {1, -1, 0}).withNormalBias(normalBias));
+    b.addChunk(0, 0);
+    const std::string cube = b.addModel("cube", Affine::translation({50, 2, 50}), fixedUuid(1));
+    const std::string wall = b.addModel("wall", Affine::translation({54.02, 0, 49}), fixedUuid(2));
+    // A ray through cube point (x, y) meets the plane x = w at height x + y - w: at most
+    // 54 - 54.02 = -0.02 on the wall's plane, 54 - 53.92 = 0.08 on the plane 0.1 m in front.
+    b.expect(cube, 0, normalBias >= 0.05 ? 1u : 0u,
+             normalBias >= 0.05 ? "the normal bias looks the wall's foot up inside the cube's shadow"
+                                : "its shadow passes 2 cm under the wall: nothing receives it");
+    b.expect(wall, 0, 0, "nothing behind the wall");
+    return b;
+}
+
+SpaceBuilder cubeOverNonCastingFloor() {
+    SpaceBuilder b;
+    b.addMesh("cube", MeshSpec::box({0, 0, 0}, {1, 1, 1}));
+    b.addMesh("floor", MeshSpec::box({-10, 0, -10}, {10, 0.2, 10}, GroupSpec::named("floor")));
+    b.addLight(LightSpec::directional("sun", kTiltedSun));
+    b.addChunk(0, 0);
+    const std::string cube = b.addModel("cube", Affine::translation({50, 2, 50}), fixedUuid(1));
+    const std::string floor = b.addModel("floor", Affine::translation({50, 0, 50}), fixedUuid(2), false);
+    // The sun ray through the cube's lit top (y 3) reaches the floor's top (y 0.2) 2.8 m
+    // lower and at most 0.84 m sideways in x, 0.56 m in z: on the floor (40..60).
+    b.expect(cube, 0, 1, "its shadow falls on the floor, which casts no shadow but receives");
+    b.expect(floor, 0, 0, "castsShadow false: never a caster");
     return b;
 }
 

@@ -175,6 +175,7 @@ struct LightSpec {
     double bias = 0.0;               // metres
     double slopeBias = 0.0;          // metres at 45 degrees
     double filterRadius = 0.0;       // metres
+    double normalBias = 0.0;         // metres (written only when > 0)
 
     static LightSpec directional(std::string name, const glm::dvec3& direction);
     static LightSpec point(std::string name, const glm::dvec3& position, double range);
@@ -182,6 +183,7 @@ struct LightSpec {
                           double coneAngleDegrees);
     LightSpec& withBias(double b, double slope = 0.0) { bias = b; slopeBias = slope; return *this; }
     LightSpec& withFilterRadius(double r) { filterRadius = r; return *this; }
+    LightSpec& withNormalBias(double b) { normalBias = b; return *this; }
 };
 
 // Chunks loaded on each side of the baked one: left = -x, right = +x, bottom = -z, top = +z.
@@ -356,9 +358,22 @@ SpaceBuilder twoLightsMasks();
 SpaceBuilder manyChunks(int n);
 // (7) Flat terrain at 0; a 1 m cube at (50..51, 0..1, 50..51) under a 20 m x 20 m x 0.2 m
 // roof slab at y = 3..3.2; sun (0.3,-1,0.2). Opaque roof: cube 0 (no lit point; needs an
-// occlusion proof). Alpha-tested roof (.model alphaTest override): light passes it, cube 1.
-// Roof: 1 either way. Terrain: 0.
-SpaceBuilder hiddenUnderRoof(bool roofAlphaTested);
+// occlusion proof), roof 1. Alpha-tested roof (.model alphaTest override): light passes it,
+// cube 1, roof 1. A roof with castsShadow false: the engine never draws it into the shadow
+// map, so light passes it too (semantics.md condition 1): cube 1; the roof itself is never a
+// caster: 0. Terrain: 0.
+enum class Roof { Opaque, AlphaTested, CastsNoShadow };
+SpaceBuilder hiddenUnderRoof(Roof roof);
+// (7b) No terrain; a 1 m cube floating at (50..51, 2..3, 50..51) over a 20 m x 20 m x 0.2 m
+// floor slab at y = 0..0.2 (40..60) whose model has castsShadow false; sun (0.3,-1,0.2).
+// The floor casts nothing (0) but still receives: the cube's shadow falls on it (1).
+SpaceBuilder cubeOverNonCastingFloor();
+// (7c) No terrain; a 1 m cube floating at (50..51, 2..3, 50..51), sun (1,-1,0) with the given
+// normal bias, and a one-sided wall facing -x at x = 54.02 (y 0..1.5, z 49..52). The cube's
+// shadow on the wall's plane ends 2 cm below the wall: with normal bias 0 nothing receives
+// it (0). A normal bias of 0.1 m looks the wall's shadow up 0.1 m in front of it, where the
+// shadow reaches 8 cm up: the cube's shadow shows on the wall's foot (1). The wall: 0.
+SpaceBuilder cubeBesideWall(double normalBias);
 // (8) Flat terrain at 0; a 1 m cube at (26..27, 0..1, 20..21) beside light 1 "lamp", point
 // at (20,5,20) with the given range: from range 10 on its shadow lands on the terrain (a
 // witness); with range 5 (the cube is >= 7.2 m away) it is out of reach. No expectations.

@@ -414,8 +414,8 @@ TEST(SpaceBuilder, KnownAnswerScenesWriteAndLocateTheirExpectations) {
     const std::vector<std::pair<std::string, SpaceBuilder>> scenes = {
         {"cubeOnTerrain", cubeOnTerrain()},   {"twoFloatingCubes", twoFloatingCubes()},
         {"rangeAndCone", rangeAndCone()},     {"thinRod", thinRod()},
-        {"twoLightsMasks", twoLightsMasks()}, {"hiddenOpaque", hiddenUnderRoof(false)},
-        {"hiddenAlpha", hiddenUnderRoof(true)}};
+        {"twoLightsMasks", twoLightsMasks()}, {"hiddenOpaque", hiddenUnderRoof(Roof::Opaque)},
+        {"hiddenAlpha", hiddenUnderRoof(Roof::AlphaTested)}};
     std::map<std::string, fs::path> written;
     for (const auto& [name, scene] : scenes) {
         EXPECT_FALSE(scene.expectations().empty()) << name;
