@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages shadowcull needs to build and test, and any packages
-# named as arguments (scripts/fuzz.sh: clang). Idempotent.
+# named as arguments (scripts/fuzz.sh: clang). Idempotent. chromium, nodejs and npm are for
+# the three.js frame check (examples/threejs; its npm packages: examples/threejs/install.sh).
 set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config
@@ -11,8 +12,12 @@ packages=(
   libmeshoptimizer-dev gltfpack libdraco-dev
   googletest libgtest-dev libbenchmark-dev
   slurm-wlm munge
+  chromium nodejs
   "$@"
 )
+# npm: Debian's package, unless node came with its own (NodeSource's nodejs includes npm
+# and conflicts with Debian's npm package).
+command -v npm >/dev/null || packages+=(npm)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
