@@ -19,8 +19,10 @@
 #include "bench/world_gen.h"
 #include "cli/pipeline.h"
 #include "cli/preview_command.h"
+#include "gltf/gltf_import.h"
 #include "gpu/preview.h"
 #include "tests/support/gl_available.h"
+#include "tests/support/gltf_scenes.h"
 #include "tests/support/sample_space.h"
 #include "tests/test_files.h"
 
@@ -228,6 +230,48 @@ TEST(Preview, GeneratedWorldFramesAgreeWhereTheFilterCoversTheFootprint) {
     EXPECT_EQ(t.previews, 6u * 4u);
     EXPECT_GT(t.covered, 100000u);
     EXPECT_GT(t.culled, 0u);
+}
+
+// The same world with every filterRadius 0: no pixel is covered, and still no
+// false cull shows from any camera, for the sun, the point and the spot lights.
+TEST(Preview, GeneratedWorldWithoutFilterShowsNoFalseCull) {
+    REQUIRE_GL();
+    const fs::path dir = freshTestDir();
+    const fs::path space = dir / "world";
+    bench::WorldSpec spec = bench::worldS();
+    spec.name = "preview0";
+    spec.objectsPerChunk = 60;
+    spec.localLights = 3;
+    spec.seed = 14;
+    bench::writeWorld(spec, space.string());
+    setFilterRadii(space, 0.0, 0.0);  // some of its lights have one as generated
+    const Totals t = checkChunk(space, ChunkCoord{0, 0}, 1024, dir);
+    EXPECT_EQ(t.previews, 6u * 4u);
+    EXPECT_EQ(t.covered, 0u);
+    EXPECT_GT(t.culled, 0u);
+}
+
+// The glTF courtyard (tests/support/gltf_scenes: sun, lamp and torch on nodes, an
+// alpha-masked bush, a mirrored shelf, a node that casts no shadow) imported as a user
+// would, filterRadius 0: every chunk it covers, every light, four cameras.
+TEST(Preview, CourtyardShowsNoFalseCull) {
+    REQUIRE_GL();
+    const fs::path dir = freshTestDir();
+    const fs::path scene = dir / "courtyard.glb";
+    writeText(scene, courtyardScene().scene.glb());
+    gltf::ImportOptions io;
+    io.scenePath = scene.string();
+    io.outDir = (dir / "space").string();
+    Expected<gltf::ImportReport> imported = gltf::importScene(io);
+    ASSERT_TRUE(imported) << imported.error().what();
+    Totals all;
+    for (ChunkCoord c : {ChunkCoord{0, 0}, ChunkCoord{-1, -1}, ChunkCoord{-1, 0}, ChunkCoord{0, -1}}) {
+        const Totals t = checkChunk(dir / "space", c, 1024, dir);
+        all.previews += t.previews, all.covered += t.covered, all.culled += t.culled;
+    }
+    EXPECT_EQ(all.previews, 4u * 3u * 4u);
+    EXPECT_EQ(all.covered, 0u);
+    EXPECT_GT(all.culled, 0u);
 }
 
 namespace {
