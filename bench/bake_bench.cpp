@@ -395,7 +395,7 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     opt.keepVerdicts = false;
     std::string codes;
     std::vector<std::map<std::string, uint64_t>> perLight;
-    opt.onChunkBaked = [&](const ChunkVerdicts& cv) {
+    opt.onChunkBaked = [&](const BakeWindow&, const ChunkVerdicts& cv) -> Status {
         appendVerdictCodes(cv, codes);
         const size_t nl = size_t(cv.lightCount);
         perLight.resize(nl);
@@ -413,6 +413,7 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
                 m["triangles"] += tris;
                 if (d.verdict == Verdict::Undecided) m["undecidedTriangles"] += tris;
             }
+        return Status::ok();
     };
     long rssFirstChunk = 0, rssMidChunk = 0, rssLastChunk = 0;
     auto last = std::chrono::steady_clock::now();

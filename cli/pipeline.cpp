@@ -465,7 +465,8 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     if (Status i = interrupted(); !i) return i.error();
 
     // 3. Outputs: never an input, and every one writable before any work is done.
-    const std::vector<std::string> inputs = source.inputFiles();
+    result.inputFiles = source.inputFiles();
+    const std::vector<std::string>& inputs = result.inputFiles;
     const std::string outDir = opt.outDir.empty() ? opt.spaceDir : opt.outDir;
     if (opt.write && !opt.outDir.empty()) {
         // Before the results are probed: they may go into --out too.
@@ -632,6 +633,8 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
                 return stopWith(e);
             }
             cv.simulated = simulatedEffects(window, cv);
+            if (opt.onChunkBaked)
+                if (Status s = opt.onChunkBaked(window, cv); !s) return stopWith(s.error());
         }
         // The chunk's part of the results (kept by --resume for a later bake, too).
         std::optional<results::ChunkRecord> record;
@@ -665,7 +668,6 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
             result.writeSeconds += since(tw);
         }
         result.totals.add(cv);
-        if (opt.onChunkBaked) opt.onChunkBaked(cv);
         if (record)
             if (Status s = addResults(*record); !s) return stopWith(s.error());
         if (opt.keepVerdicts) result.chunks.push_back(std::move(cv));

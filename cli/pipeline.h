@@ -74,9 +74,10 @@ struct BakeOptions {
     // Benchmarks: bake only these chunks (in grid order) of a space read whole, as a bake
     // of every chunk reads it (--chunk reads only the named chunks and their neighbours).
     std::vector<ChunkCoord> bakeOnly;
-    // Called with each baked chunk's verdicts before the bake lets them go (benchmarks
-    // count them without keeping them).
-    std::function<void(const ChunkVerdicts&)> onChunkBaked;
+    // Called with each baked chunk's window and verdicts while the window is still loaded,
+    // before the bake lets them go (benchmarks count them, `check` compares and draws them,
+    // without keeping them). An error stops the bake with it.
+    std::function<Status(const BakeWindow&, const ChunkVerdicts&)> onChunkBaked;
 };
 
 struct StageTiming {
@@ -96,6 +97,9 @@ struct BakeResult {
     int chunksResumed = 0;  // skipped by --resume: unchanged since the last bake
     std::vector<std::string> notes;  // what the bake did differently from what was asked
     std::string gl;                  // the OpenGL context the GPU stages ran on, "" if none ran
+    // Every file the bake read (space.xml, the chunk files, each resource named), sorted:
+    // outputs written beside the bake check theirs against it (cli/output_guard.h).
+    std::vector<std::string> inputFiles;
     // With --resume, --results and keepVerdicts: the chunks skipped as unchanged, as recorded
     // when they were baked (their part of the results file).
     std::vector<results::ChunkRecord> resumedRecords;

@@ -230,7 +230,9 @@ Expected<RenderReport> renderLightView(const BakeWindow& w, const ChunkVerdicts&
             rv.image.set(x, y, {p[0], p[1], p[2]});
         }
     // One mask per outlined group, drawn through everything (a group hidden inside a house
-    // is still shown where it is). Bounded: a picture with more outlines reads no better.
+    // is still shown where it is), outlined and let go. Bounded: a picture with more
+    // outlines reads no better.
+    std::vector<uint8_t> mask(size_t(width) * size_t(height));
     gl.Disable(GL_DEPTH_TEST);
     gl.Uniform1i(uFlat, 1);
     for (size_t k = 0; k < rq.outlined.size() && k < 64; ++k) {
@@ -243,12 +245,14 @@ Expected<RenderReport> renderLightView(const BakeWindow& w, const ChunkVerdicts&
         drawViews([&](const GroupRange& r) { return r.object == object && int(r.group) == group; },
                   [](const GroupRange&) { return Rgb{255, 255, 255}; });
         readBack();
-        std::vector<uint8_t>& mask = rv.masks.emplace_back(size_t(width) * size_t(height), 0);
         bool any = false;
         for (int y = 0; y < height; ++y)
-            for (int x = 0; x < width; ++x)
-                if (rgba[(size_t(height - 1 - y) * size_t(width) + size_t(x)) * 4] > 127)
-                    mask[size_t(y) * size_t(width) + size_t(x)] = 1, any = true;
+            for (int x = 0; x < width; ++x) {
+                const bool covered = rgba[(size_t(height - 1 - y) * size_t(width) + size_t(x)) * 4] > 127;
+                mask[size_t(y) * size_t(width) + size_t(x)] = covered;
+                any |= covered;
+            }
+        if (any) addOutline(rv, mask);
         if (!any) {
             // Thinner than a pixel (a 5 mm rod in a 100 m view): ring where its box's centre falls.
             const std::vector<Aabb> boxes = groupBounds(w, tris, object);

@@ -59,6 +59,16 @@ void axisGizmo(RgbImage& img, const LightView& v, int tx, int ty, int tile, int 
 
 }  // namespace
 
+void addOutline(RenderedViews& rv, const std::vector<uint8_t>& mask) {
+    const int viewW = rv.cols * rv.tile;
+    paintOutline(rv.image, mask, std::max(2, rv.tile / 256));
+    for (int ty = 0; ty < rv.rows * rv.tile; ty += rv.tile)
+        for (int tx = 0; tx < viewW; tx += rv.tile) {
+            int b[4];
+            if (maskBox(mask, viewW, tx, ty, rv.tile, b)) rv.rings.push_back({b[0], b[1], b[2], b[3]});
+        }
+}
+
 RgbImage composePicture(const RenderedViews& rv, const std::vector<std::string>& title,
                         const std::vector<LegendEntry>& legend, RenderReport& report) {
     const int viewW = rv.cols * rv.tile, viewH = rv.rows * rv.tile;
@@ -77,18 +87,14 @@ RgbImage composePicture(const RenderedViews& rv, const std::vector<std::string>&
         drawText(img, pad, y, title[k], k == 0 ? Rgb{255, 255, 255} : kText, s);
 
     const int vx = (width - viewW) / 2, vy = headerH;
-    RgbImage views = rv.image;
-    for (const std::vector<uint8_t>& m : rv.masks) paintOutline(views, m, std::max(2, rv.tile / 256));
-    img.blit(views, vx, vy);
+    img.blit(rv.image, vx, vy);
+    // A ring around each outlined group, so that a group a few pixels wide is found.
+    for (const std::array<int, 4>& b : rv.rings) {
+        const int r = 10 * s;
+        img.strokeRect(vx + b[0] - r, vy + b[1] - r, b[2] - b[0] + 1 + 2 * r, b[3] - b[1] + 1 + 2 * r, kOutlineColour, 2 * s);
+    }
     for (size_t v = 0; v < rv.views.size(); ++v) {
         const int tx = int(v) % rv.cols * rv.tile, ty = int(v) / rv.cols * rv.tile;
-        // A ring around each outlined group, so that a group a few pixels wide is found.
-        for (const std::vector<uint8_t>& m : rv.masks) {
-            int b[4];
-            if (!maskBox(m, viewW, tx, ty, rv.tile, b)) continue;
-            const int r = 10 * s;
-            img.strokeRect(vx + b[0] - r, vy + b[1] - r, b[2] - b[0] + 1 + 2 * r, b[3] - b[1] + 1 + 2 * r, kOutlineColour, 2 * s);
-        }
         for (const auto& [px, py] : rv.points) {
             const int r = 10 * s;
             if (px >= tx && px < tx + rv.tile && py >= ty && py < ty + rv.tile)

@@ -22,9 +22,9 @@ struct RenderedViews {
     std::vector<LightView> views;
     int tile = 0, cols = 1, rows = 1;
     RgbImage image;
-    // One mask per outlined group (tile grid size, 1 where the group covers the pixel,
-    // seen through anything in front of it); empty masks are groups out of view.
-    std::vector<std::vector<uint8_t>> masks;
+    // Rings around outlined groups: {x0, y0, x1, y1} in views image pixels, one per group
+    // and tile it covers (their outlines are painted into `image` by addOutline).
+    std::vector<std::array<int, 4>> rings;
     // Outlined groups too thin to cover a pixel: the projection of their box's centre
     // (views image pixels), ringed like the others.
     std::vector<std::array<int, 2>> points;
@@ -36,6 +36,12 @@ struct LegendEntry {
     bool swatch = true;
     Rgb colour;
 };
+
+// Outlines a group: `mask` (views image size, 1 where the group covers the pixel, seen
+// through anything in front of it) is painted into `views.image` as an outline, and a ring
+// is kept for each tile it covers. Nothing of the mask is kept: a picture with many
+// outlined groups costs one mask at a time.
+void addOutline(RenderedViews& views, const std::vector<uint8_t>& mask);
 
 // Lays out the title lines, the views (with face labels, axis gizmo and outlines) and the
 // legend; fills the report's title, legend and picture geometry.
