@@ -88,6 +88,9 @@ struct Options {
     // bake that runs right after another reuses the pages that one freed, and the first
     // bake of a run pays for fresh ones: in one round, order alone moved D / D2k by 0.1-0.2.)
     int rounds = 1;
+    // --window-only: each world baked again with the `neighbours` rectangle as its windows
+    // (BakeOptions::neighbourWindows), side by side: what whole-space receivers cost.
+    bool windowOnly = false;
 };
 
 [[noreturn]] void usage(const char* why) {
@@ -96,7 +99,7 @@ struct Options {
                  "usage: bake_bench [--sizes S,M,L,XL,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N [--contiguous]]\n"
                  "                  [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]\n"
                  "                  [--cross-check] [--no-gpu] [--gpu-baseline S,M,L|none] [--gpu-res N]\n"
-                 "                  [--gen-only] [--json FILE] [--gl auto,egl,osmesa] [--rounds N]\n",
+                 "                  [--gen-only] [--json FILE] [--gl auto,egl,osmesa] [--rounds N] [--window-only]\n",
                  why);
     std::exit(2);
 }
@@ -165,6 +168,8 @@ Options parseArgs(int argc, char** argv) {
                 if (!gpu::parseGlBackend(b)) usage(("unknown OpenGL backend " + b + " (auto, egl, osmesa)").c_str());
                 o.glBackends.push_back(b);
             }
+        } else if (a == "--window-only") {
+            o.windowOnly = true;
         } else if (a == "--json") {
             o.jsonOut = value();
         } else if (a == "--rounds") {
@@ -365,7 +370,10 @@ void appendVerdictCodes(const ChunkVerdicts& cv, std::string& codes) {
 
 // Bakes the world (write = false) with the pipeline's options, or with the original GPU
 // method (`gpuBaseline`), and writes the figures to `out` and the verdict codes beside it.
-int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, const fs::path& out, bool gpuBaseline) {
+// `neighbourWindows`: the analytic bake with the `neighbours` rectangle as its windows
+// (--window-only).
+int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, const fs::path& out, bool gpuBaseline,
+              bool neighbourWindows = false) {
     cli::BakeOptions opt;
     opt.spaceDir = dir.string();
     opt.write = false;
@@ -375,6 +383,7 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     opt.useGeometry = o.geometry;
     opt.geometry.crossCheckWitnesses = o.crossCheck;
     opt.useGpu = o.gpu;
+    opt.neighbourWindows = neighbourWindows;
     if (gpuBaseline) {
         opt.gpuBaseline = true;
         opt.gpuResolution = o.gpuBaselineResolution;
@@ -444,6 +453,8 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     json j;
     j["chunksBaked"] = r->totals.chunks;
     j["peakLoadedChunks"] = r->peakLoadedChunks;
+    // How far the windows reached past the rectangle for the shadows (issue 33).
+    j["reach"] = {{"windows", r->reach.windows}, {"chunks", r->reach.chunks}, {"chunksBeyond", r->reach.chunksBeyond}};
     j["chunksTotal"] = all.size();
     j["loadSeconds"] = r->loadSeconds;
     j["loadCpuSeconds"] = r->loadCpuSeconds;
@@ -656,6 +667,16 @@ int main(int argc, char** argv) {
     for (WorldRun& w : runs) {
         if (!w.baked) continue;
         const fs::path out = o.work / ("bake-" + w.spec.name + ".json");
+        if (o.windowOnly) {
+            const fs::path wout = o.work / ("window-" + w.spec.name + ".json");
+            fs::remove(wout, ec);
+            std::fprintf(stderr, "[%s] baking with neighbours-rectangle windows ...\n", w.spec.name.c_str());
+            const Job wj = runJob(o.fork, [&] { return bakeChild(w.spec, w.dir, o, wout, false, true); });
+            w.windowRun = true;
+            w.windowPeakKiB = wj.maxRssKiB;
+            w.windowBaked = wj.ok && readJson(wout, w.windowBake);
+            if (w.windowBaked) compareWindowOnly(w, out.string() + ".bits", wout.string() + ".bits");
+        }
         if (std::find(o.gpuBaselineSizes.begin(), o.gpuBaselineSizes.end(), w.spec.name) != o.gpuBaselineSizes.end()) {
             const fs::path gout = o.work / ("gpu-" + w.spec.name + ".json");
             fs::remove(gout, ec);
@@ -702,6 +723,7 @@ int main(int argc, char** argv) {
     for (const WorldRun& w : runs)
         if (w.baked) printBake(w);
     printGpuBaseline(runs);
+    printWindowOnly(runs);
 
     printComparisons(runs);
 
@@ -712,7 +734,9 @@ int main(int argc, char** argv) {
                            {"bakePeakRssKiB", w.bakePeakKiB}, {"bakeRounds", w.rounds}, {"bakeAgain", w.again}, {"baseline", w.baseline}, {"baselinePeakRssKiB", w.baselinePeakKiB},
                            {"gpuBaseline", {{"run", w.gpuRun}, {"ok", w.gpuBaked}, {"failure", w.gpuFailure}, {"bake", w.gpuBake},
                                             {"peakRssKiB", w.gpuPeakKiB}, {"culls", w.gpuCulls}, {"falseCulls", w.gpuFalseCulls},
-                                            {"analyticCullsGpuKeeps", w.analyticCullsGpuKeeps}, {"comparedBits", w.comparedBits}}}});
+                                            {"analyticCullsGpuKeeps", w.analyticCullsGpuKeeps}, {"comparedBits", w.comparedBits}}},
+                           {"windowOnly", {{"run", w.windowRun}, {"ok", w.windowBaked}, {"bake", w.windowBake},
+                                           {"peakRssKiB", w.windowPeakKiB}, {"differences", w.windowDiff}}}});
         writeJson(o.jsonOut, all);
     }
     for (const WorldRun& w : runs)

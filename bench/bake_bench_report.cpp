@@ -190,6 +190,73 @@ void compareWithGpu(WorldRun& w, const fs::path& analyticBits, const fs::path& g
     }
 }
 
+void compareWindowOnly(WorldRun& w, const fs::path& wholeBits, const fs::path& windowBits) {
+    std::ifstream a(wholeBits, std::ios::binary), b(windowBits, std::ios::binary);
+    const std::string whole((std::istreambuf_iterator<char>(a)), {}), window((std::istreambuf_iterator<char>(b)), {});
+    if (whole.size() != window.size()) {
+        w.windowBaked = false;
+        return;
+    }
+    auto name = [](char c) { return c == 'k' ? "kept" : c == 'c' ? "culled" : "undecided"; };
+    json diff = json::object();
+    for (size_t k = 0; k < whole.size(); ++k)
+        if (whole[k] != window[k]) diff[std::string("window ") + name(window[k]) + ", whole " + name(whole[k])] =
+                                       diff.value(std::string("window ") + name(window[k]) + ", whole " + name(whole[k]), uint64_t(0)) + 1;
+    w.windowDiff = diff;
+}
+
+void printWindowOnly(const std::vector<WorldRun>& runs) {
+    bool any = false;
+    for (const WorldRun& w : runs) any = any || w.windowRun;
+    if (!any) return;
+    std::printf("\n## Receivers from the whole space vs the neighbours rectangle (--window-only)\n\n");
+    std::printf("The same analytic bake, once with windows that hold every chunk a shadow reaches (the default) and once "
+                "with the `neighbours` rectangle as before issue 33, one child process each. \"window culled, whole kept\": "
+                "a false cull of the window-only bake (its shadow has a witness on a receiver beyond the rectangle).\n\n");
+    std::printf("| world | whole s | window s | whole / window (CPU time) | chunks per window (past the rectangle) | peak loaded chunks "
+                "(whole / window) | peak RSS (whole / window) | culled (whole / window) | undecided (whole / window) | "
+                "bits that differ |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+    for (const WorldRun& w : runs) {
+        if (!w.windowRun) continue;
+        if (!w.windowBaked) {
+            std::printf("| %s | | n/a (failed) | | | | | | | |\n", w.spec.name.c_str());
+            continue;
+        }
+        const json &a = w.bake, &b = w.windowBake;
+        const double ta = a["totalSeconds"].get<double>(), tb = b["totalSeconds"].get<double>();
+        const double cpuRatio = a["cpuSeconds"].get<double>() / std::max(1e-9, b["cpuSeconds"].get<double>());
+        const double windows = std::max(1.0, a["reach"]["windows"].get<double>());
+        std::string diff;
+        for (auto it = w.windowDiff.begin(); it != w.windowDiff.end(); ++it)
+            diff += (diff.empty() ? "" : "; ") + it.key() + ": " + count(it.value().get<uint64_t>());
+        std::printf("| %s | %s | %s | %.2fx (%.2fx) | %.1f (%.1f) | %s / %s | %s / %s | %s / %s | %s / %s | %s |\n", w.spec.name.c_str(),
+                    seconds(ta).c_str(), seconds(tb).c_str(), ta / tb, cpuRatio, a["reach"]["chunks"].get<double>() / windows,
+                    a["reach"]["chunksBeyond"].get<double>() / windows, count(a["peakLoadedChunks"].get<uint64_t>()).c_str(),
+                    count(b["peakLoadedChunks"].get<uint64_t>()).c_str(), mib(double(w.bakePeakKiB)).c_str(),
+                    mib(double(w.windowPeakKiB)).c_str(), count(a["bits"]["culled"].get<uint64_t>()).c_str(),
+                    count(b["bits"]["culled"].get<uint64_t>()).c_str(), count(a["bits"]["undecided"].get<uint64_t>()).c_str(),
+                    count(b["bits"]["undecided"].get<uint64_t>()).c_str(), diff.empty() ? "none" : diff.c_str());
+    }
+    std::printf("\n| world | light | culled (whole / window) | kept by a witness (whole / window) | undecided (whole / "
+                "window) |\n|---|---|---:|---:|---:|\n");
+    auto culled = [](const json& counts) {
+        uint64_t n = 0;
+        for (auto it = counts.begin(); it != counts.end(); ++it)
+            if (it.key().rfind("culled:", 0) == 0) n += it.value().get<uint64_t>();
+        return n;
+    };
+    for (const WorldRun& w : runs) {
+        if (!w.windowRun || !w.windowBaked) continue;
+        for (size_t l = 0; l < w.bake["lights"].size() && l < w.windowBake["lights"].size(); ++l) {
+            const json &a = w.bake["lights"][l]["counts"], &b = w.windowBake["lights"][l]["counts"];
+            std::printf("| %s | %s | %s / %s | %s / %s | %s / %s |\n", w.spec.name.c_str(),
+                        w.bake["lights"][l]["name"].get<std::string>().c_str(), count(culled(a)).c_str(), count(culled(b)).c_str(),
+                        count(a.value("kept", uint64_t(0))).c_str(), count(b.value("kept", uint64_t(0))).c_str(),
+                        count(a.value("undecided", uint64_t(0))).c_str(), count(b.value("undecided", uint64_t(0))).c_str());
+        }
+    }
+}
+
 void printGpuBaseline(const std::vector<WorldRun>& runs) {
     bool any = false;
     for (const WorldRun& w : runs) any = any || w.gpuRun;

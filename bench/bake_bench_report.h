@@ -44,6 +44,11 @@ struct WorldRun {
     nlohmann::json gpuBake;
     long gpuPeakKiB = 0;
     uint64_t gpuCulls = 0, gpuFalseCulls = 0, analyticCullsGpuKeeps = 0, comparedBits = 0;
+    // The same analytic bake with the `neighbours` rectangle as its windows (--window-only);
+    // `windowDiff`: how its bits differ from the whole-space bake's (compareWindowOnly).
+    bool windowRun = false, windowBaked = false;
+    nlohmann::json windowBake, windowDiff;
+    long windowPeakKiB = 0;
     // M baked again right after L (with both), so that the two bakes the linearity target
     // compares bracket L in time: the mean of M's two bakes against L corrects a drift of
     // the machine's speed over the run, and their difference shows its noise.
@@ -100,6 +105,11 @@ void printBake(const WorldRun& w);
 // two bakes' verdict codes.
 void compareWithGpu(WorldRun& w, const std::filesystem::path& analyticBits, const std::filesystem::path& gpuBits);
 void printGpuBaseline(const std::vector<WorldRun>& runs);
+// Counts how the window-only bake's bits differ from the whole-space bake's, by what each
+// bake says ("window culled, whole kept": a false cull of the window-only bake, its shadow
+// witnessed beyond the rectangle).
+void compareWindowOnly(WorldRun& w, const std::filesystem::path& wholeBits, const std::filesystem::path& windowBits);
+void printWindowOnly(const std::vector<WorldRun>& runs);
 // The bare-Embree comparison, the targets of issues 6, 13 and 16, and a caution when other
 // processes loaded the machine.
 void printComparisons(const std::vector<WorldRun>& runs);

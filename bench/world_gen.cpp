@@ -700,7 +700,7 @@ WorldStats writeIssue13World(const WorldSpec& spec, const std::string& dir) {
             names.push_back(std::string("stone_") + char('a' + r));
             mesh(names.back(), scannedRock(shapes.back(), freq[r], 1401 + r, "stone"));
         }
-        b.addLight(LightSpec::directional("sun_low", dirFrom(17, 35)).withBias(0.05));
+        b.addLight(LightSpec::directional("sun_low", dirFrom(spec.lowSunDegrees, 35)).withBias(0.05));
         // Issue 19: the real map's case, a sun 75 degrees high, beside the low one.
         b.addLight(LightSpec::directional("sun_high", dirFrom(75, 200)).withBias(0.05));
         st.directionalLights = 2;
@@ -825,6 +825,14 @@ WorldSpec worldR() {
     return s;
 }
 
+// R's placements under an evening sun 10 degrees up: the same seed, so the same content.
+WorldSpec worldR10() {
+    WorldSpec s = worldR();
+    s.name = "R10";
+    s.lowSunDegrees = 10;
+    return s;
+}
+
 bool worldByName(const std::string& name, WorldSpec& out) {
     std::string n;
     for (char c : name) n += char(std::toupper(static_cast<unsigned char>(c)));
@@ -835,6 +843,7 @@ bool worldByName(const std::string& name, WorldSpec& out) {
     else if (n == "D") out = worldD();
     else if (n == "D2K") out = worldD2k();
     else if (n == "R") out = worldR();
+    else if (n == "R10") out = worldR10();
     else return false;
     return true;
 }
@@ -848,6 +857,7 @@ uint64_t specHash(const WorldSpec& s) {
     // L worlds stay valid (their output did not change).
     if (s.kind != WorldKind::Forest) o << "|kind" << int(s.kind) << "|" << s.meshTriangles << "|i13v" << kIssue13GeneratorVersion;
     if (s.kind == WorldKind::RealMap) o << "|r" << kRealMapGeneratorVersion;
+    if (s.kind == WorldKind::RealMap && s.lowSunDegrees != 17.0) o << "|sun" << testing::formatNumber(s.lowSunDegrees);
     uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a
     for (unsigned char c : o.str()) {
         h ^= c;

@@ -54,6 +54,9 @@ struct WorldSpec {
     // Dense worlds: 0 for the dense meshes (51k-180k triangles), else every unique mesh
     // tessellated with about this many triangles (D2k: 2048), placements unchanged.
     int meshTriangles = 0;
+    // Real-map-like worlds: the low sun's elevation (degrees above the horizon). R: 17; R10:
+    // 10, the evening sun whose shadows run several chunks (issue 33).
+    double lowSunDegrees = 17.0;
 };
 
 // The benchmark sizes of issue 6. Same density everywhere (280 models per chunk), so that
@@ -66,7 +69,8 @@ WorldSpec worldXL();  // 100 x 100 chunks, ~2.8 M models (issue 16: memory follo
 WorldSpec worldD();    // 6 x 6 chunks of 64 m, dense meshes (51k-180k triangles), ~500 placements
 WorldSpec worldD2k();  // D with every mesh at 2,048 triangles (same placements)
 WorldSpec worldR();    // 20 x 20 chunks of 64 m, ~48k small rocks, trees, a low and a high sun
-// "S", "M", "L", "D", "D2k", "R" (case-insensitive); false for anything else.
+WorldSpec worldR10();  // R with its low sun 10 degrees up (issue 33: shadows several chunks long)
+// "S", "M", "L", "D", "D2k", "R", "R10" (case-insensitive); false for anything else.
 bool worldByName(const std::string& name, WorldSpec& out);
 
 // A hash of every field of the spec and of the generator's version: the cache key of a

@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "cli/pipeline.h"
+#include "cli/report.h"
 
 namespace shadowcull::cli {
 
@@ -147,6 +148,7 @@ int runExplain(const ExplainOptions& opt, std::ostream& out, std::ostream& err) 
     }
     out << "simulated for this chunk:" << (cv.simulated.empty() ? " nothing beyond the plain definition\n" : "\n");
     for (const std::string& s : cv.simulated) out << "  " << s << "\n";
+    if (auto plan = r->plans.find(cv.coord); plan != r->plans.end()) out << formatWindow(plan->second, r->settings);
     out << "warnings:" << (r->diagnostics.empty() ? " none\n" : "\n");
     for (const Diagnostic& d : r->diagnostics) out << "  " << d.what() << "\n";
     return kExitOk;

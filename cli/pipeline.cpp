@@ -94,6 +94,10 @@ std::vector<std::string> simulatedEffects(const BakeWindow& w, const ChunkVerdic
 
 namespace {
 
+// Whether a bake's windows hold every chunk its shadows reach (core/window_plan.h), or the
+// `neighbours` rectangle: the original method's window, and the benchmarks' window-only bake.
+bool wholeSpaceWindows(const BakeOptions& opt) { return !opt.gpuBaseline && !opt.neighbourWindows; }
+
 // Appends `point` and four points `r` metres from it to its sides across `direction`
 // (unit): a small cross of witness targets around a point the search is aimed at.
 void appendCross(const glm::dvec3& point, const glm::dvec3& direction, double r, std::vector<glm::dvec3>& targets) {
@@ -288,17 +292,25 @@ Status StageRunner::bake(const BakeWindow& window, ChunkVerdicts& cv, std::vecto
 }
 
 Expected<ChunkBake> bakeChunk(const BakeOptions& opt, ChunkCoord chunk) {
+    // The original method reads the chunk and its neighbours; the analytic bake the whole
+    // space's summaries, since a shadow may land anywhere (core/window_plan.h).
     std::vector<ChunkCoord> only{chunk};
-    Expected<Space> loaded = loadSpace(opt.spaceDir, opt.resourceRoot, &only);
-    if (!loaded) return loaded.error();
+    Expected<SpaceSource> scanned = SpaceSource::scan(opt.spaceDir, opt.resourceRoot, wholeSpaceWindows(opt) ? nullptr : &only);
+    if (!scanned) return scanned.error();
     ChunkBake out;
-    out.space = std::make_unique<Space>(std::move(*loaded));
-    if (!out.space->chunks.count(chunk))
+    out.space = std::make_unique<Space>();
+    out.space->settings = scanned->settings();
+    out.space->diagnostics = scanned->diagnostics();
+    if (!scanned->chunks().count(chunk))
         return makeError(ErrorKind::BadInput, (fs::path(opt.spaceDir) / chunkFileName(chunk)).string(), 0,
                          "no such chunk file in the space");
+    const WindowPlanner planner(scanned->settings(), scanned->chunks(), wholeSpaceWindows(opt));
+    out.plan = planner.plan(chunk);
+    for (ChunkCoord c : out.plan.chunks)
+        if (Status s = scanned->load(c, *out.space, out.space->diagnostics); !s) return s.error();
     StageRunner runner(opt);
     if (!runner.status()) return runner.status().error();
-    out.window = buildWindow(*out.space, chunk, out.terrainMeshes);
+    out.window = buildWindow(*out.space, chunk, out.plan.chunks, out.terrainMeshes);
     out.verdicts = makeChunkVerdicts(*out.space, out.window);
     out.stages = runner.timings();
     if (Status s = runner.bake(out.window, out.verdicts, out.stages); !s) return s.error();
@@ -424,7 +436,10 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     // thread, most of it the dynamic loader): it runs beside the scan, and the stages
     // take its answer below. (A std::async future waits for it wherever the bake returns.)
     std::future<Status> glProbe = std::async(std::launch::async, [&opt] { return StageRunner::probeGl(opt); });
-    Expected<SpaceSource> scanned = SpaceSource::scan(opt.spaceDir, opt.resourceRoot, opt.chunkNames.empty() ? nullptr : &only);
+    // --chunk: the original method reads those chunks and their neighbours; the analytic
+    // bake the whole space, since their shadows may land anywhere (core/window_plan.h).
+    const bool scanOnly = !opt.chunkNames.empty() && !wholeSpaceWindows(opt);
+    Expected<SpaceSource> scanned = SpaceSource::scan(opt.spaceDir, opt.resourceRoot, scanOnly ? &only : nullptr);
     if (!scanned) return scanned.error();
     SpaceSource& source = *scanned;
     BakeResult result;
@@ -540,7 +555,8 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     Space space;
     space.settings = source.settings();
     TerrainMeshes terrainMeshes;
-    WindowSequence windows(source, targets);
+    const WindowPlanner planner(source.settings(), source.chunks(), wholeSpaceWindows(opt));
+    WindowSequence windows(source, targets, &planner);
     auto release = [&](size_t k) {
         const std::vector<std::shared_ptr<const Mesh>> gone = windows.leave(k, space, terrainMeshes);
         if (gone.empty()) return;
@@ -600,7 +616,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         const std::string chunkName = chunkFileName(targets[k]);
         uint64_t inputHash = 0;
         if (resume) {
-            inputHash = windowInputHash(source, targets[k], opt);
+            inputHash = windowInputHash(source, targets[k], planner.plan(targets[k]).chunks, opt);
             Expected<std::string> current = readRegularFile(target, "chunk file", ErrorKind::Io);
             // With --results, its part of the results as recorded; unreadable (an edited
             // state): bake it again.
@@ -625,7 +641,10 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         const ChunkFile& cf = space.chunks.at(targets[k]);
         ChunkVerdicts cv;
         {
-            const BakeWindow window = buildWindow(space, targets[k], terrainMeshes);
+            const WindowPlan plan = planner.plan(targets[k]);
+            if (planner.wholeSpace()) result.reach.add(plan);
+            if (planner.wholeSpace() && opt.keepVerdicts) result.plans[targets[k]] = plan;
+            const BakeWindow window = buildWindow(space, targets[k], plan.chunks, terrainMeshes);
             cv = makeChunkVerdicts(space, window);
             if (Status status = runner.bake(window, cv, result.stages); !status) {
                 Error e = status.error();

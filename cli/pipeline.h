@@ -14,6 +14,7 @@
 #include "core/scene.h"
 #include "core/stage.h"
 #include "core/verdict.h"
+#include "core/window_plan.h"
 #include "geometry/geometry_stage.h"
 #include "gpu/baseline.h"
 #include "gpu/confirm_stage.h"
@@ -74,6 +75,11 @@ struct BakeOptions {
     // Benchmarks: bake only these chunks (in grid order) of a space read whole, as a bake
     // of every chunk reads it (--chunk reads only the named chunks and their neighbours).
     std::vector<ChunkCoord> bakeOnly;
+    // Benchmarks only (bake_bench --window-only): the analytic bake's windows are the
+    // `neighbours` rectangle, as before receivers became the whole space (issue 33). NOT
+    // conservative against the engine: a shadow landing beyond the rectangle is not seen,
+    // and its caster may be written 0. It exists to measure what whole-space receivers cost.
+    bool neighbourWindows = false;
     // Called with each baked chunk's window and verdicts while the window is still loaded,
     // before the bake lets them go (benchmarks count them, `check` compares and draws them,
     // without keeping them). An error stops the bake with it.
@@ -104,8 +110,14 @@ struct BakeResult {
     // when they were baked (their part of the results file).
     std::vector<results::ChunkRecord> resumedRecords;
     // The most chunks held in memory at once (memory follows the window: a bake of a grid
-    // W chunks deep holds about 2W + 3 of them, whatever its size).
+    // W chunks deep whose windows reach R chunks along x holds at most (2R + 1) W of them,
+    // whatever its size; R is 1 where every shadow stays within neighbours 1).
     size_t peakLoadedChunks = 0;
+    // How far the windows reached past the `neighbours` rectangle for the shadows (the
+    // analytic bake: core/window_plan.h), per light.
+    ReachTotals reach;
+    // With keepVerdicts and whole-space windows: each baked chunk's window (explain).
+    std::map<ChunkCoord, WindowPlan> plans;
     std::optional<results::ShardRecord> shard;  // bake --shard: this shard's part
 };
 
@@ -155,6 +167,7 @@ private:
 // it again (render, check). The window points into `space`.
 struct ChunkBake {
     std::unique_ptr<Space> space;
+    WindowPlan plan;  // the chunks the window holds, and what the shadows took past the rectangle
     TerrainMeshes terrainMeshes;
     BakeWindow window;
     ChunkVerdicts verdicts;

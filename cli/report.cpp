@@ -44,6 +44,41 @@ std::string formatSimulated(const BakeTotals& totals) {
     return s;
 }
 
+std::string formatReach(const ReachTotals& reach, const SpaceSettings& settings) {
+    if (!reach.windows) return {};
+    const double windows = double(reach.windows);
+    std::string s = "windows: " + fmt("%.1f", double(reach.chunks) / windows) +
+                    " chunks each on average (every chunk the shadows and occluders reach), " +
+                    (reach.chunksBeyond ? fmt("%.1f", double(reach.chunksBeyond) / windows) : std::string("none")) +
+                    " past the neighbours rectangle\n";
+    for (size_t i = 0; i < reach.lights.size() && i < settings.lights.size(); ++i) {
+        const LightReach& L = reach.lights[i];
+        if (!L.chunksBeyond) continue;
+        s += "  " + settings.lights[i].name + ": up to " + std::to_string(L.ringsBeyond) + " chunk ring" +
+             (L.ringsBeyond == 1 ? "" : "s") + " (" + fmt("%.0f m", L.ringsBeyond * settings.chunkSize) +
+             ") past the rectangle, " + std::to_string(L.chunksBeyond) + " chunk load" + (L.chunksBeyond == 1 ? "" : "s") +
+             " for it in " + std::to_string(reach.windowsBeyond[i]) + " of " + std::to_string(reach.windows) + " windows\n";
+    }
+    return s;
+}
+
+std::string formatWindow(const WindowPlan& plan, const SpaceSettings& settings) {
+    std::string s = "window: " + std::to_string(plan.chunks.size()) + " chunk" + (plan.chunks.size() == 1 ? "" : "s") +
+                    " (this one and every chunk its shadows and occluders reach), " +
+                    (plan.chunksBeyond ? std::to_string(plan.chunksBeyond) : std::string("none")) +
+                    " past the neighbours rectangle\n";
+    for (size_t i = 0; i < plan.lights.size() && i < settings.lights.size(); ++i) {
+        const LightReach& L = plan.lights[i];
+        if (L.beyond.empty()) continue;
+        s += "  " + settings.lights[i].name + ": " + std::to_string(L.beyond.size()) + " chunk" +
+             (L.beyond.size() == 1 ? "" : "s") + ", up to " + std::to_string(L.ringsBeyond) + " ring" +
+             (L.ringsBeyond == 1 ? "" : "s") + " (" + fmt("%.0f m", L.ringsBeyond * settings.chunkSize) + ") past it:";
+        for (ChunkCoord c : L.beyond) s += " " + chunkFileName(c).substr(0, 9);
+        s += "\n";
+    }
+    return s;
+}
+
 std::string formatSummary(const BakeResult& r, bool wrote) {
     const BitCounts c = countBits(r);
     std::string s;
@@ -68,6 +103,7 @@ std::string formatSummary(const BakeResult& r, bool wrote) {
     for (const Light& L : r.settings.lights) lightNames.push_back(L.name);
     s += formatSavingsTable(r.totals.savings.world(), lightNames);
     s += formatSimulated(r.totals);
+    s += formatReach(r.reach, r.settings);
     s += "time: load " + fmt("%.2f s", r.loadSeconds);
     for (const StageTiming& st : r.stages) {
         s += ", " + st.name + " " + fmt("%.2f s", st.stats.seconds);

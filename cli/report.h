@@ -22,6 +22,12 @@ savings::Tally tallyBake(const BakeResult& r);
 // effect of the chunks' `simulated` lists once, with how many chunks it applied to when not
 // all. One line per effect after "simulated:".
 std::string formatSimulated(const BakeTotals& totals);
+// How far the analytic bake's windows reached past the `neighbours` rectangle, per light
+// ("" for a bake that planned no windows: the original method).
+std::string formatReach(const ReachTotals& reach, const SpaceSettings& settings);
+// One window (explain): how many chunks it held, and per light the chunks past the
+// `neighbours` rectangle that its shadows and occluders took it to.
+std::string formatWindow(const WindowPlan& plan, const SpaceSettings& settings);
 
 // The summary printed at the end of a bake (plain text, deterministic but for the times).
 std::string formatSummary(const BakeResult& r, bool wrote);

@@ -23,14 +23,17 @@ namespace shadowcull::cli {
 namespace {
 
 // Bumped whenever a change to the tool may change verdicts for the same input.
-constexpr const char* kBakeLogicVersion = "shadowcull-bake-4";
+constexpr const char* kBakeLogicVersion = "shadowcull-bake-5";
 
 // The settings, lights and the bake options that change verdicts.
 void hashSettings(Hasher& h, const SpaceSettings& S, const BakeOptions& opt) {
     h.str(kBakeLogicVersion);
     h.pod(opt.useRaycast).pod(opt.useGeometry).pod(opt.raycast.areaSamples).pod(opt.raycast.maxFeatureSamples);
     h.pod(opt.raycast.maxHitsPerRay).pod(opt.useGpu).pod(opt.gpuBaseline).pod(opt.gpuResolution).pod(opt.gpuTerrain);
-    h.pod(S.chunkSize).pod(S.terrainTolerance).pod(S.neighbours);
+    h.pod(S.chunkSize).pod(S.terrainTolerance);
+    // `neighbours` is the window of the original method and of the benchmarks' window-only
+    // bake; the analytic bake's windows do not depend on it (core/window_plan.h).
+    if (opt.gpuBaseline || opt.neighbourWindows) h.pod(uint8_t(1)).pod(S.neighbours);
     for (const Light& L : S.lights) {
         h.str(L.name).pod(L.type).vec(L.direction).vec(L.position).pod(L.range).pod(L.coneHalfAngleDeg);
         h.pod(L.bias).pod(L.slopeBias).pod(L.filterRadius).pod(L.normalBias);
@@ -39,17 +42,16 @@ void hashSettings(Hasher& h, const SpaceSettings& S, const BakeOptions& opt) {
 
 }  // namespace
 
-uint64_t windowInputHash(const SpaceSource& space, ChunkCoord centre, const BakeOptions& opt) {
+uint64_t windowInputHash(const SpaceSource& space, ChunkCoord centre, const std::vector<ChunkCoord>& window,
+                         const BakeOptions& opt) {
     const SpaceSettings& S = space.settings();
     Hasher h;
     hashSettings(h, S, opt);
     h.pod(centre);
-    for (int dx = -S.neighbours.left; dx <= S.neighbours.right; ++dx)
-        for (int dz = -S.neighbours.bottom; dz <= S.neighbours.top; ++dz) {
-            auto it = space.chunks().find({centre.x + dx, centre.z + dz});
-            if (it == space.chunks().end()) h.pod(uint8_t(0));
-            else h.pod(uint8_t(1)).pod(it->second.objectsHash);
-        }
+    // Every chunk the window holds (the rectangle and what the shadows reach), by position:
+    // a chunk that enters or leaves the window changes the hash as an edit of it does.
+    h.pod(uint64_t(window.size()));
+    for (ChunkCoord c : window) h.pod(c).pod(space.chunks().at(c).objectsHash);
     return h.value();
 }
 

@@ -21,7 +21,8 @@ struct BakeOptions;
 
 // Hash of everything the bake of chunk `centre` reads, as the scan of the space found it
 // (no chunk needs to be loaded for it).
-uint64_t windowInputHash(const SpaceSource& space, ChunkCoord centre, const BakeOptions& options);
+uint64_t windowInputHash(const SpaceSource& space, ChunkCoord centre, const std::vector<ChunkCoord>& window,
+                         const BakeOptions& options);
 
 // Hash of everything a bake of the whole space reads (the settings and lights, the options
 // that change verdicts, the space directory as given, every chunk's objects, mesh content

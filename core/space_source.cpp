@@ -18,6 +18,7 @@
 #include "core/format.h"
 #include "core/hash.h"
 #include "core/limits.h"
+#include "core/window_plan.h"
 
 namespace fs = std::filesystem;
 
@@ -69,6 +70,14 @@ std::optional<std::string> placedBeyondLimits(const ResourceSummary& mesh, const
            formatNumber(limits::kMaxLocalCoordinate) + " m (docs/format.md, accepted ranges)";
 }
 
+// The world-space box of an object's vertices from its resource's box: placed by its
+// transform and its chunk's origin, widened against rounding (placedBounds).
+Aabb wsObjectBounds(const ResourceSummary& rs, const ChunkObject& o, ChunkCoord c, double chunkSize) {
+    RowTransform wsFromMesh = o.kind == ChunkObject::Kind::Model ? o.transform : RowTransform{};
+    wsFromMesh.rows[3] += glm::dvec3(double(c.x) * chunkSize, 0.0, double(c.z) * chunkSize);
+    return placedBounds(Aabb{rs.lo, rs.hi}, wsFromMesh);
+}
+
 ResourceSummary summarize(const Mesh& m) {
     ResourceSummary s;
     s.usable = true;
@@ -88,6 +97,12 @@ ResourceSummary summarize(const Heightfield& hf) {
     ResourceSummary s;
     s.usable = true;
     s.contentHash = contentHash(hf);
+    if (!hf.heights.empty()) {
+        const auto [lo, hi] = std::minmax_element(hf.heights.begin(), hf.heights.end());
+        s.lo = glm::dvec3(0.0, *lo, 0.0);
+        s.hi = glm::dvec3(hf.size, *hi, hf.size);
+        s.hasVertices = true;
+    }
     s.sourceFiles = hf.sourceFiles;
     return s;
 }
@@ -322,14 +337,17 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
         for (const ChunkObject& o : cf->objects)
             if (!o.resource.empty()) namedResources.insert(src.fullPath(o.resource));
         if (Status s = src.resolve(*cf, keep != nullptr, resourceWarnings); !s) return s.error();
-        ChunkEntry entry{path, cf->contentHash, 0, 0};
+        ChunkEntry entry{path, cf->contentHash, 0, 0, {}};
         Hasher h;
         h.pod(coord);
         for (const ChunkObject& o : cf->objects) {
             entry.usableObjects += o.skipped ? 0 : 1;
             h.pod(o.kind).pod(o.elementIndex).str(o.resource).str(o.uuid).pod(o.castsShadow).pod(o.skipped);
             for (const glm::dvec3& r : o.transform.rows) h.vec(r);
-            if (!o.skipped) h.pod(src.resource(o)->contentHash);
+            if (o.skipped) continue;
+            const ResourceSummary& rs = *src.resource(o);
+            h.pod(rs.contentHash);
+            if (rs.hasVertices) entry.wsBounds.extend(wsObjectBounds(rs, o, coord, S.chunkSize));
         }
         entry.objectsHash = h.value();
         src.chunks_.emplace(coord, std::move(entry));
@@ -413,13 +431,14 @@ std::vector<std::shared_ptr<const Mesh>> SpaceSource::unload(ChunkCoord c, Space
     return gone;
 }
 
-WindowSequence::WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres)
-    : source_(source), centres_(std::move(centres)) {
+WindowSequence::WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres, const WindowPlanner* planner)
+    : source_(source), planner_(planner), centres_(std::move(centres)) {
     for (size_t k = 0; k < centres_.size(); ++k)
         for (ChunkCoord c : window(k)) lastUse_[c] = k;
 }
 
 std::vector<ChunkCoord> WindowSequence::window(size_t k) const {
+    if (planner_) return planner_->plan(centres_[k]).chunks;
     const Neighbours& n = source_.settings().neighbours;
     const ChunkCoord c = centres_[k];
     std::vector<ChunkCoord> out;

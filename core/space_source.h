@@ -23,6 +23,8 @@
 
 namespace shadowcull {
 
+class WindowPlanner;
+
 // Hashes of what a resource gives the stages (bake --resume, shards): the triangles, groups
 // and their flags; the heightfield's samples.
 uint64_t contentHash(const Mesh& mesh);
@@ -32,8 +34,10 @@ uint64_t contentHash(const Heightfield& heightfield);
 struct ResourceSummary {
     bool usable = false;        // loaded without error (else every object naming it is skipped)
     uint64_t contentHash = 0;   // of the mesh or heightfield (usable only)
-    bool hasVertices = false;   // model: the box below is set
-    glm::dvec3 lo{0.0}, hi{0.0};  // model: the box of its vertices, mesh coordinates (metres)
+    bool hasVertices = false;   // the box below is set
+    // The box of its vertices (metres): a model's in mesh coordinates; a terrain's over its
+    // chunk square, chunk-local ([0, S] in x and z, its lowest to highest sample in y).
+    glm::dvec3 lo{0.0}, hi{0.0};
     std::vector<std::string> sourceFiles;  // every file read to build it
 };
 
@@ -45,6 +49,10 @@ struct ChunkEntry {
     // Hash of what the stages read of it (bake --resume, shards): every object's element,
     // kind, resource, uuid, flags and placement, and its mesh's or heightfield's content.
     uint64_t objectsHash = 0;
+    // World-space box of every usable object's triangles (conservative: from the resources'
+    // vertex boxes, placed with a margin); empty when none. Planning windows (core/
+    // window_plan.h) needs only this of the chunks a window does not hold.
+    Aabb wsBounds;
 };
 
 class SpaceSource {
@@ -136,9 +144,12 @@ private:
 // order a bake holds about two columns of the grid at a time, whatever the grid's size.
 class WindowSequence {
 public:
-    // `centres`: the chunks baked, in the order they will be (each window is the centre
-    // and its neighbours that the space has).
-    WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres);
+    // `centres`: the chunks baked, in the order they will be; each window holds the chunks
+    // `planner` plans for its centre (core/window_plan.h), or without one the centre and
+    // its neighbours that the space has. The planner must outlive the sequence.
+    WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres, const WindowPlanner* planner = nullptr);
+    // The chunks window k holds, in grid order (what buildWindow is given).
+    std::vector<ChunkCoord> window(size_t k) const;
     // Loads what window k holds into `space` (SpaceSource::load).
     Status enter(size_t k, Space& space, std::vector<Diagnostic>& lateDiagnostics);
     // Drops what no window after k holds (SpaceSource::unload); returns the meshes that go,
@@ -148,8 +159,8 @@ public:
     size_t peakLoaded() const { return peak_; }
 
 private:
-    std::vector<ChunkCoord> window(size_t k) const;
     SpaceSource& source_;
+    const WindowPlanner* planner_ = nullptr;
     std::vector<ChunkCoord> centres_;
     std::map<ChunkCoord, size_t> lastUse_;  // the last window holding each chunk
     size_t peak_ = 0;

@@ -190,7 +190,15 @@ std::string objectLabel(const ChunkFile& cf, const ChunkObject& o) {
 
 }  // namespace
 
-BakeWindow buildWindow(const Space& space, ChunkCoord centre,
+BakeWindow buildWindow(const Space& space, ChunkCoord centre, TerrainMeshes& terrainMeshes) {
+    const Neighbours& n = space.settings.neighbours;
+    std::vector<ChunkCoord> chunks;
+    for (int dx = -n.left; dx <= n.right; ++dx)
+        for (int dz = -n.bottom; dz <= n.top; ++dz) chunks.push_back({centre.x + dx, centre.z + dz});
+    return buildWindow(space, centre, chunks, terrainMeshes);
+}
+
+BakeWindow buildWindow(const Space& space, ChunkCoord centre, const std::vector<ChunkCoord>& chunks,
                        TerrainMeshes& terrainMeshes) {
     const SpaceSettings& S = space.settings;
     BakeWindow w;
@@ -206,13 +214,12 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
     {
         std::unordered_set<const Mesh*> seen;
         std::vector<const Mesh*> meshes;
-        for (int dx = -S.neighbours.left; dx <= S.neighbours.right; ++dx)
-            for (int dz = -S.neighbours.bottom; dz <= S.neighbours.top; ++dz) {
-                auto it = space.chunks.find({centre.x + dx, centre.z + dz});
-                if (it == space.chunks.end()) continue;
-                for (const ChunkObject& o : it->second.objects)
-                    if (!o.skipped && o.mesh && seen.insert(o.mesh.get()).second) meshes.push_back(o.mesh.get());
-            }
+        for (ChunkCoord c : chunks) {
+            auto it = space.chunks.find(c);
+            if (it == space.chunks.end()) continue;
+            for (const ChunkObject& o : it->second.objects)
+                if (!o.skipped && o.mesh && seen.insert(o.mesh.get()).second) meshes.push_back(o.mesh.get());
+        }
         tbb::parallel_for_each(meshes.begin(), meshes.end(), [](const Mesh* m) { vertexIndex(*m); });
     }
 
@@ -254,9 +261,9 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre,
     const double oy = yMin <= yMax ? std::round(0.5 * (yMin + yMax)) : 0.0;
     w.wsOrigin = glm::dvec3(double(centre.x) * S.chunkSize, oy, double(centre.z) * S.chunkSize);
 
-    for (int dx = -S.neighbours.left; dx <= S.neighbours.right; ++dx) {
-        for (int dz = -S.neighbours.bottom; dz <= S.neighbours.top; ++dz) {
-            ChunkCoord c{centre.x + dx, centre.z + dz};
+    {
+        for (ChunkCoord c : chunks) {
+            const int dx = c.x - centre.x, dz = c.z - centre.z;
             auto it = space.chunks.find(c);
             if (it == space.chunks.end()) continue;
             const ChunkFile& cf = it->second;

@@ -1,4 +1,5 @@
-// A bake window: the centre chunk being baked plus its loaded neighbours, in one
+// A bake window: the centre chunk being baked plus the chunks loaded around it (the
+// `neighbours` rectangle and what its shadows reach: core/window_plan.h), in one
 // window-local frame (metres, double). The frame's origin is the centre chunk's origin
 // (gx*S, oy, gz*S), oy being the rounded middle height of the centre chunk's content,
 // so a space moved by whole chunks (e.g. 100 km) or lifted (e.g. 5 km) gives the
@@ -176,10 +177,13 @@ Aabb lsGroupBoundsByLoop(const WindowObject& object, uint32_t group, bool withAr
 // Terrain meshes made from heightfields, kept across windows (a bake makes each once).
 using TerrainMeshes = std::unordered_map<const Heightfield*, std::shared_ptr<const Mesh>>;
 
-// Builds the window around `centre`. Terrain meshes are made once per heightfield and kept
-// in `terrainMeshes` (owned by the caller, reused across windows).
-BakeWindow buildWindow(const Space& space, ChunkCoord centre,
+// Builds the window around `centre` of the chunks `chunks` (those of them `space` holds),
+// in that order (a plan's grid order: core/window_plan.h). Terrain meshes are made once per
+// heightfield and kept in `terrainMeshes` (owned by the caller, reused across windows).
+BakeWindow buildWindow(const Space& space, ChunkCoord centre, const std::vector<ChunkCoord>& chunks,
                        TerrainMeshes& terrainMeshes);
+// The window of the `neighbours` rectangle around `centre` (the original method's window).
+BakeWindow buildWindow(const Space& space, ChunkCoord centre, TerrainMeshes& terrainMeshes);
 
 // Exact test for a triangle with no area in the sense used everywhere in the project:
 // two of its vertices are the same point. (Collinear but distinct vertices are kept: a

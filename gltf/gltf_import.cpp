@@ -372,7 +372,8 @@ private:
             if (*opt_.neighbours < span)
                 std::snprintf(buf, sizeof buf,
                               "--neighbours %d: each chunk is baked with %d chunks of %s m on each side loaded (a window of "
-                              "%s m); the scene spans %d x %d chunks, so receivers farther away do not count",
+                              "%s m) by bake --method gpu; the scene spans %d x %d chunks, so its receivers farther away do not "
+                              "count there (the analytic bake loads every chunk a shadow reaches)",
                               *opt_.neighbours, *opt_.neighbours, formatNumber(S).c_str(),
                               formatNumber((2 * *opt_.neighbours + 1) * S).c_str(), x1 - x0 + 1, z1 - z0 + 1);
             else
@@ -380,7 +381,7 @@ private:
             if (*opt_.neighbours < reach)
                 warn(gltfPath("nodes", widest),
                      "its bounds reach " + std::to_string(reach) + " chunks beyond its own, more than --neighbours " +
-                         std::to_string(*opt_.neighbours) + ": windows centred farther away do not load it as a receiver");
+                         std::to_string(*opt_.neighbours) + ": bake --method gpu's windows centred farther away do not load it as a receiver");
         } else if (span <= kMaxAutoNeighbours) {
             report_.neighbours = span;
             std::snprintf(buf, sizeof buf,
@@ -391,8 +392,9 @@ private:
             report_.neighbours = std::min(std::max(kLargeSceneNeighbours, reach), 64);
             std::snprintf(buf, sizeof buf,
                           "the scene is %s m across (%d x %d chunks of %s m), more than one window should hold: each chunk "
-                          "is baked with %d chunks on each side loaded (%s m), enough for its largest object (%s); shadows "
-                          "falling farther than that do not count (--neighbours widens it)",
+                          "is baked with %d chunks on each side loaded (%s m) by bake --method gpu, enough for its largest "
+                          "object (%s); shadows falling farther than that do not count there (--neighbours widens it; "
+                          "the analytic bake loads every chunk a shadow reaches)",
                           formatNumber(across).c_str(), x1 - x0 + 1, z1 - z0 + 1, formatNumber(S).c_str(),
                           report_.neighbours, formatNumber((2 * report_.neighbours + 1) * S).c_str(),
                           gltfPath("nodes", widest).c_str());

@@ -210,7 +210,12 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     }
     if (queries.empty()) return Status::ok();
 
-    const std::vector<LightView> views = lightViews(w, L, res);
+    // A directional light's view frames the examined casters (every ray through them), not
+    // the whole window: only their pixels are read (lightViews, lsFocus).
+    Aabb lsCasters;
+    for (size_t k = 0; k < queryOf.size(); ++k)
+        if (!queryOf[k].empty()) lsCasters.extend(w.objects[k].lsBounds);
+    const std::vector<LightView> views = lightViews(w, L, res, &lsCasters);
     if (views.empty()) return Status::ok();
     // Perspective: a near plane below all geometry, so clipping there loses nothing of the
     // frustum. Points of the guard frustum (|x|,|y| <= 2tz) with z < near lie within

@@ -87,7 +87,7 @@ std::array<float, 16> LightView::clipMatrix(double nearZ, double farZ, double de
     return m;
 }
 
-std::vector<LightView> lightViews(const BakeWindow& w, const Light& L, int resolution) {
+std::vector<LightView> lightViews(const BakeWindow& w, const Light& L, int resolution, const Aabb* lsFocus) {
     std::vector<LightView> views;
     if (w.lsBounds.empty()) return views;
     if (L.type == LightType::Directional) {
@@ -95,15 +95,22 @@ std::vector<LightView> lightViews(const BakeWindow& w, const Light& L, int resol
         v.W = glm::normalize(L.direction);
         lightBasis(v.W, v.U, v.V);
         double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
-        for (int c = 0; c < 8; ++c) {
-            const glm::dvec3 p((c & 1) ? w.lsBounds.max.x : w.lsBounds.min.x, (c & 2) ? w.lsBounds.max.y : w.lsBounds.min.y,
-                               (c & 4) ? w.lsBounds.max.z : w.lsBounds.min.z);
-            const double q[3] = {glm::dot(p, v.U), glm::dot(p, v.V), glm::dot(p, v.W)};
-            for (int k = 0; k < 3; ++k) {
-                lo[k] = std::min(lo[k], q[k]);
-                hi[k] = std::max(hi[k], q[k]);
+        // The rectangle (k = 0, 1) over the focus when there is one, the depths (k = 2) over
+        // the window: every receiver and occluder along a ray through the focus.
+        const bool focused = lsFocus && !lsFocus->empty();
+        auto extend = [&](const Aabb& box, int k0, int k1) {
+            for (int c = 0; c < 8; ++c) {
+                const glm::dvec3 p((c & 1) ? box.max.x : box.min.x, (c & 2) ? box.max.y : box.min.y,
+                                   (c & 4) ? box.max.z : box.min.z);
+                const double q[3] = {glm::dot(p, v.U), glm::dot(p, v.V), glm::dot(p, v.W)};
+                for (int k = k0; k <= k1; ++k) {
+                    lo[k] = std::min(lo[k], q[k]);
+                    hi[k] = std::max(hi[k], q[k]);
+                }
             }
-        }
+        };
+        extend(focused ? *lsFocus : w.lsBounds, 0, focused ? 1 : 2);
+        if (focused) extend(w.lsBounds, 2, 2);
         // A window flat in one direction of the view still needs a non-empty rectangle.
         const double scale = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-3});
         for (int k = 0; k < 3; ++k)

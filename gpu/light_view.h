@@ -60,7 +60,12 @@ struct LightView {
 // the window's bounds for a directional light; the six cube faces for a point light; one
 // perspective view over the cone for a spot light up to kMaxSingleViewSpotDeg, else six.
 // Each view is resolution x resolution pixels.
-std::vector<LightView> lightViews(const BakeWindow& w, const Light& L, int resolution);
+// `lsFocus` (directional lights; ignored when null or empty): the view's rectangle covers
+// only the rays through this box (window-local), its depths still the whole window. The
+// confirmation stage reads pixels only where the casters it examines lie, so it frames
+// their box: a window that holds every chunk a low sun's shadows reach (core/window_plan.h)
+// is many chunks long, and framing it whole would spread the pixels over it.
+std::vector<LightView> lightViews(const BakeWindow& w, const Light& L, int resolution, const Aabb* lsFocus = nullptr);
 
 // A basis (U, V) perpendicular to W with U x V = -W; U lies along the world axis least
 // aligned with W, so a light straight down gets U = +x, V = -z exactly.

@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <functional>
 #include <map>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -543,6 +544,19 @@ TEST(Cli, ResultsAreTheSameForAnyThreadCount) {
 
 namespace {
 
+// Moves the first model of a chunk file by 1 mm along x (its <row3>), as an edit would.
+void nudgeFirstModel(const fs::path& chunk) {
+    std::string text = readText(chunk);
+    const size_t row3 = text.find("<row3>");
+    ASSERT_NE(row3, std::string::npos);
+    const size_t end = text.find("</row3>", row3);
+    std::istringstream in(text.substr(row3 + 6, end - row3 - 6));
+    double x, y, z;
+    in >> x >> y >> z;
+    text.replace(row3 + 6, end - row3 - 6, " " + std::to_string(x + 0.001) + " " + std::to_string(y) + " " + std::to_string(z) + " ");
+    writeText(chunk, text);
+}
+
 cli::BakeResult bakeResume(const fs::path& dir) {
     cli::BakeOptions opt;
     opt.spaceDir = dir.string();
@@ -572,16 +586,7 @@ TEST(Resume, SkipsUnchangedChunksAndRebakesWhatAnEditReaches) {
 
     // Move one model of chunk (1,1) by 1 mm: every chunk whose window holds (1,1) (the 3x3
     // block around it) is baked again; the other 7 are not.
-    const fs::path edited = dir / "space" / "00010001o.chunk";
-    std::string text = readText(edited);
-    const size_t row3 = text.find("<row3>");
-    ASSERT_NE(row3, std::string::npos);
-    const size_t end = text.find("</row3>", row3);
-    std::istringstream in(text.substr(row3 + 6, end - row3 - 6));
-    double x, y, z;
-    in >> x >> y >> z;
-    text.replace(row3 + 6, end - row3 - 6, " " + std::to_string(x + 0.001) + " " + std::to_string(y) + " " + std::to_string(z) + " ");
-    writeText(edited, text);
+    nudgeFirstModel(dir / "space" / "00010001o.chunk");
     cli::BakeResult edit = bakeResume(dir / "space");
     EXPECT_EQ(edit.chunksWritten, 9);
     EXPECT_EQ(edit.chunksResumed, 7);
@@ -592,6 +597,34 @@ TEST(Resume, SkipsUnchangedChunksAndRebakesWhatAnEditReaches) {
     cli::BakeResult touch = bakeResume(dir / "space");
     EXPECT_EQ(touch.chunksWritten, 1);
     EXPECT_EQ(touch.chunksResumed, 15);
+}
+
+// A chunk's resume record covers every chunk its shadows reach, however far: moving the
+// ground three chunks away, where the tower's shadow lands, bakes the tower's chunk again;
+// moving ground that no shadow of it reaches (chunk 4, below the shadow) does not.
+TEST(Resume, AnEditWhereALongShadowLandsRebakesItsCaster) {
+    auto rebaked = [](const cli::BakeResult& r) {
+        std::set<std::string> out;
+        for (const ChunkVerdicts& cv : r.chunks) out.insert(chunkFileName(cv.coord));
+        return out;
+    };
+    SpaceBuilder b = longShadowOverChunks(LongShadow::LandsThreeChunksAway);
+    b.addChunk(4, 0);
+    b.addModel("ground", Affine::translation({400, 0, 0}), fixedUuid(14));
+    fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    EXPECT_EQ(bakeResume(dir / "space").chunksWritten, 5);
+    EXPECT_EQ(bakeResume(dir / "space").chunksResumed, 5);
+
+    nudgeFirstModel(dir / "space" / "00030000o.chunk");
+    const cli::BakeResult far = bakeResume(dir / "space");
+    EXPECT_TRUE(rebaked(far).count("00000000o.chunk")) << "the tower's shadow lands on the edited ground";
+    EXPECT_TRUE(rebaked(far).count("00030000o.chunk"));
+
+    nudgeFirstModel(dir / "space" / "00040000o.chunk");
+    const cli::BakeResult elsewhere = bakeResume(dir / "space");
+    EXPECT_FALSE(rebaked(elsewhere).count("00000000o.chunk")) << "no shadow of chunk 0 reaches chunk 4";
+    EXPECT_TRUE(rebaked(elsewhere).count("00040000o.chunk"));
 }
 
 // A --resume bake killed mid-run completes on the next --resume run, with the same files

@@ -18,6 +18,7 @@
 #include "core/chunk_writer.h"
 #include "core/results_file.h"
 #include "core/space_source.h"
+#include "core/window_plan.h"
 #include "raycast/group_samples.h"
 #include "tests/test_files.h"
 
@@ -31,10 +32,10 @@ const fs::path kSample = fs::path(SHADOWCULL_SOURCE_DIR) / "data" / "sample";
 
 // 6 x 5 chunks of the benchmark forest, thinned: a terrain per chunk (so heightfields and
 // their meshes come and go as the window slides), trees, rocks, buildings, local lights.
-std::string writeStripWorld(const fs::path& dir) {
+std::string writeStripWorld(const fs::path& dir, int chunksX = 6) {
     bench::WorldSpec w;
     w.name = "lazy-test";
-    w.chunksX = 6, w.chunksZ = 5;
+    w.chunksX = chunksX, w.chunksZ = 5;
     w.seed = 1616;
     w.objectsPerChunk = 16;
     w.terrainSamples = 9;
@@ -297,28 +298,41 @@ TEST(SpaceSource, AParkedMeshWhoseFileChangedIsReadAgain) {
 }
 
 // The bake that loads chunks as windows need them gives every chunk the verdicts of a bake
-// of that chunk alone (which reads its window whole), and holds about two columns of the
-// grid, not the grid. Terrain meshes are freed and made again as the window slides: a stage
+// of that chunk alone (which reads its window whole), and holds the columns its windows
+// reach, not the grid. Terrain meshes are freed and made again as the window slides: a stage
 // cache that kept a freed mesh's entry would hand it to a new mesh at the same address.
 TEST(LazyBake, VerdictsAreThoseOfWholeWindowsAndMemoryFollowsTheWindow) {
     const fs::path dir = freshTestDir();
-    const std::string space = writeStripWorld(dir);
+    // 16 chunks wide: under the world's 10-degree sun a window reaches up to 5 chunks along
+    // x (core/window_plan.h), and the grid must be wider than what a few windows hold.
+    const std::string space = writeStripWorld(dir, 16);
     cli::BakeOptions opt = quickBake(space);
     Expected<cli::BakeResult> whole = cli::runBake(opt);
     ASSERT_TRUE(whole) << whole.error().what();
-    ASSERT_EQ(whole->chunks.size(), 30u);
-    // 5 chunks deep: the window of (x, z) holds columns x-1 .. x+1; what a later window
-    // needs stays, the rest goes.
-    EXPECT_LE(whole->peakLoadedChunks, 2u * 5u + 3u);
+    ASSERT_EQ(whole->chunks.size(), 80u);
+    // 5 chunks deep: in grid order the window of (x, z) holds chunks of columns x - R ..
+    // x + R (R: the farthest any window reaches along x), so the bake holds at most the
+    // columns x - R .. x + R + 1 at once: what a later window needs stays, the rest goes.
+    Expected<SpaceSource> scan = SpaceSource::scan(space, "");
+    ASSERT_TRUE(scan);
+    const WindowPlanner planner(scan->settings(), scan->chunks(), true);
+    int reachX = 0;
+    for (const auto& [c, e] : scan->chunks())
+        for (ChunkCoord k : planner.plan(c).chunks) reachX = std::max(reachX, std::abs(k.x - c.x));
+    EXPECT_GE(reachX, 2) << "the low sun must take windows past the neighbours";
+    EXPECT_LE(whole->peakLoadedChunks, size_t(2 * reachX + 2) * 5u);
+    EXPECT_LT(whole->peakLoadedChunks, 80u);
     EXPECT_GE(whole->peakLoadedChunks, 9u);
     size_t culled = 0;
-    for (const ChunkVerdicts& cv : whole->chunks) {
+    for (size_t k = 0; k < whole->chunks.size(); k += 3) {
+        const ChunkVerdicts& cv = whole->chunks[k];
         Expected<cli::ChunkBake> alone = cli::bakeChunk(opt, cv.coord);
         ASSERT_TRUE(alone) << alone.error().what();
         EXPECT_EQ(firstDifference(codes(cv), codes(alone->verdicts)), "") << chunkFileName(cv.coord);
+    }
+    for (const ChunkVerdicts& cv : whole->chunks)
         for (const ObjectVerdicts& ov : cv.objects)
             for (const Decision& d : ov.decisions) culled += d.verdict == Verdict::Culled && d.stage == std::string_view("geometry");
-    }
     EXPECT_GT(culled, 0u) << "the world must exercise the geometry stage's caches";
     // Counted as it went, the same as counted from the kept verdicts.
     EXPECT_EQ(whole->totals.chunks, whole->chunks.size());

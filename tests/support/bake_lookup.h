@@ -29,6 +29,10 @@ inline const std::vector<NamedScene>& knownAnswerScenes() {
         {"cubeOverNonCastingFloor", cubeOverNonCastingFloor},
         {"cubeBesideWall", [] { return cubeBesideWall(0.0); }},
         {"cubeBesideWallNormalBias", [] { return cubeBesideWall(0.1); }},
+        {"longShadowLandsThreeChunksAway", [] { return longShadowOverChunks(LongShadow::LandsThreeChunksAway); }},
+        {"longShadowFallsInAGap", [] { return longShadowOverChunks(LongShadow::FallsInAGap); }},
+        {"longShadowLeavesTheSpace", [] { return longShadowOverChunks(LongShadow::LeavesTheSpace); }},
+        {"lampTwoChunksOver", lampTwoChunksOver},
     };
     return s;
 }

@@ -976,3 +976,60 @@ SpaceBuilder cubeOverNonCastingFloor() {
 }
 
 }  // namespace shadowcull::testing
+
+namespace shadowcull::testing {
+
+namespace {
+
+// A ground quad facing up at y = 0 over chunk (gx, 0) of 100 m.
+void addGroundQuad(SpaceBuilder& b, int gx, uint32_t uuid) {
+    const double x0 = 100.0 * gx;
+    b.addModel("ground", Affine::translation({x0, 0, 0}), fixedUuid(uuid));
+}
+
+}  // namespace
+
+SpaceBuilder longShadowOverChunks(LongShadow ending) {
+    SpaceBuilder b;
+    // About 10 degrees above the horizon (tan = 0.18): 5.56 m of shadow per metre of height.
+    b.addLight(LightSpec::directional("sun_low", {1, -0.18, 0}).withBias(0.05));
+    b.addMesh("plateau", MeshSpec::box({0, 0, 0}, {50, 46, 100}, GroupSpec::named("rock")));
+    b.addMesh("tower", MeshSpec::box({50, 46, 49}, {52, 60, 51}, GroupSpec::named("stone")));
+    b.addMesh("ground", MeshSpec::quad({0, 0, 0}, {0, 0, 100}, {100, 0, 100}, {100, 0, 0}, GroupSpec::named("ground")));
+    const std::string plateau = b.addModel("plateau", Affine::translation({0, 0, 0}), fixedUuid(1));
+    const std::string tower = b.addModel("tower", Affine::translation({0, 0, 0}), fixedUuid(2));
+    addGroundQuad(b, 1, 11);
+    addGroundQuad(b, 2, 12);
+    if (ending == LongShadow::LandsThreeChunksAway) addGroundQuad(b, 3, 13);
+    if (ending == LongShadow::FallsInAGap) {
+        b.addChunk(3, 0);
+        addGroundQuad(b, 4, 14);
+    }
+    // The plateau's lit top (x 0..50, y 46) sends its shadow 255.6 m on: x 255.6..305.6.
+    b.expect(plateau, 0, 1, "the cliff's shadow lands 2 and 3 chunks away, on the ground of chunk 2");
+    // The tower's lit points (x 50..52, y 46..60) land at x 305.6..385.3, in chunk 3: three
+    // chunks from the tower, past a neighbours-1 window.
+    b.expect(tower, 0, ending == LongShadow::LandsThreeChunksAway ? 1u : 0u,
+             ending == LongShadow::LandsThreeChunksAway ? "its shadow lands on the ground three chunks away"
+             : ending == LongShadow::FallsInAGap        ? "its shadow falls where chunk 3 holds nothing (chunk 4's ground is above it)"
+                                                        : "its shadow leaves the space at its edge (x = 300)");
+    for (uint32_t g : {11u, 12u}) b.expect(fixedUuid(g), 0, 0, "flat ground with nothing below");
+    return b;
+}
+
+SpaceBuilder lampTwoChunksOver() {
+    SpaceBuilder b;
+    b.addLight(LightSpec::point("lamp", {50, 30, 50}, 250));
+    b.addMesh("cube", MeshSpec::box({0, 0, 0}, {1, 1, 1}));
+    b.addMesh("ground", MeshSpec::quad({0, 0, 0}, {0, 0, 100}, {100, 0, 100}, {100, 0, 0}, GroupSpec::named("ground")));
+    const std::string cube = b.addModel("cube", Affine::translation({80, 24.5, 49.5}), fixedUuid(1));
+    b.addChunk(1, 0);
+    addGroundQuad(b, 2, 12);
+    // Lines from the lamp through the cube's lit faces (-x and top) reach y = 0 at x 212..262,
+    // 214 m or less from the lamp: within range, two chunks over.
+    b.expect(cube, 0, 1, "the lamp's range carries its shadow onto the ground two chunks over");
+    b.expect(fixedUuid(12), 0, 0, "flat ground with nothing below");
+    return b;
+}
+
+}  // namespace shadowcull::testing

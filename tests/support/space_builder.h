@@ -374,6 +374,19 @@ SpaceBuilder cubeOverNonCastingFloor();
 // it (0). A normal bias of 0.1 m looks the wall's shadow up 0.1 m in front of it, where the
 // shadow reaches 8 cm up: the cube's shadow shows on the wall's foot (1). The wall: 0.
 SpaceBuilder cubeBesideWall(double normalBias);
+// (7d) Long shadows (issue 33: receivers are every surface of the space, not the window's).
+// Chunks of 100 m along x, neighbours 1, sun_low (1,-0.18,0) (10.2 degrees up, bias 0.05).
+// Chunk 0: a plateau (0..50, 0..46, 0..100) and at its edge a tower (50..52, 46..60, 49..51);
+// ground quads at y = 0 over chunks 1 and 2, then, by `ending`: ground over chunk 3 (the
+// tower's shadow lands there: 1); chunk 3 empty and ground over chunk 4, which the shadow
+// passes below (0); nothing (the space ends at x = 300: 0). The plateau's shadow lands on
+// chunk 2 (1). A window of the neighbours alone holds none of it.
+enum class LongShadow { LandsThreeChunksAway, FallsInAGap, LeavesTheSpace };
+SpaceBuilder longShadowOverChunks(LongShadow ending);
+// (7e) A point lamp at (50,30,50) of range 250 over a 1 m cube at (80..81, 24.5..25.5,
+// 49.5..50.5); chunk 1 empty, ground over chunk 2 at y = 0: the cube's shadow lands there,
+// two chunks over, within range (1).
+SpaceBuilder lampTwoChunksOver();
 // (8) Flat terrain at 0; a 1 m cube at (26..27, 0..1, 20..21) beside light 1 "lamp", point
 // at (20,5,20) with the given range: from range 10 on its shadow lands on the terrain (a
 // witness); with range 5 (the cube is >= 7.2 m away) it is out of reach. No expectations.
