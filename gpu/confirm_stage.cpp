@@ -210,12 +210,15 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     }
     if (queries.empty()) return Status::ok();
 
-    // A directional light's view frames the examined casters (every ray through them), not
-    // the whole window: only their pixels are read (lightViews, lsFocus).
-    Aabb lsCasters;
-    for (size_t k = 0; k < queryOf.size(); ++k)
-        if (!queryOf[k].empty()) lsCasters.extend(w.objects[k].lsBounds);
-    const std::vector<LightView> views = lightViews(w, L, res, &lsCasters);
+    // A directional light's view frames what the window holds within one chunk of the centre
+    // chunk's content (the original 3 x 3 window's), not the whole window: only the casters'
+    // pixels are read, every ray through them is in the view (lightViews, lsFocus), and a
+    // window many chunks long under a low sun does not spread the pixels. (Framing the
+    // examined casters alone proves more 0s, at many times the fragments:
+    // docs/performance.md, "Receivers from the whole space".)
+    const Aabb lsFrame{glm::max(w.lsBounds.min, w.lsCentreBounds.min - glm::dvec3(w.chunkSize, 0.0, w.chunkSize)),
+                       glm::min(w.lsBounds.max, w.lsCentreBounds.max + glm::dvec3(w.chunkSize, 0.0, w.chunkSize))};
+    const std::vector<LightView> views = lightViews(w, L, res, w.lsCentreBounds.empty() ? nullptr : &lsFrame);
     if (views.empty()) return Status::ok();
     // Perspective: a near plane below all geometry, so clipping there loses nothing of the
     // frustum. Points of the guard frustum (|x|,|y| <= 2tz) with z < near lie within

@@ -62,9 +62,9 @@ struct LightView {
 // Each view is resolution x resolution pixels.
 // `lsFocus` (directional lights; ignored when null or empty): the view's rectangle covers
 // only the rays through this box (window-local), its depths still the whole window. The
-// confirmation stage reads pixels only where the casters it examines lie, so it frames
-// their box: a window that holds every chunk a low sun's shadows reach (core/window_plan.h)
-// is many chunks long, and framing it whole would spread the pixels over it.
+// confirmation stage reads pixels only where the casters it examines lie, so it frames a
+// box around them: a window that holds every chunk a low sun's shadows reach
+// (core/window_plan.h) is many chunks long, and framing it whole would spread the pixels.
 std::vector<LightView> lightViews(const BakeWindow& w, const Light& L, int resolution, const Aabb* lsFocus = nullptr);
 
 // A basis (U, V) perpendicular to W with U x V = -W; U lies along the world axis least
