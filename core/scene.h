@@ -93,6 +93,15 @@ struct Heightfield {
     std::vector<double> heights;  // n*n, row-major: heights[j*n + i], metres
     std::vector<std::string> sourceFiles;  // the .terrain and its PNG
     double at(int i, int j) const { return heights[size_t(j) * size_t(n) + size_t(i)]; }
+    // Chunk-local coordinate of sample column (or row) i: (i S) / (N - 1), so sample 0 lies at
+    // 0 and sample N - 1 at exactly S, on the next chunk's sample 0 once placed (S / (N - 1)
+    // first, then times i, left it an ulp short for S = 100, N = 98: a gap at the seam). The
+    // last is S itself: (N - 1) S rounds when S is not whole (9 x 7.3 / 9 is an ulp above 7.3).
+    double sampleAt(int i) const { return i == n - 1 ? size : double(i) * size / double(n - 1); }
+    // The cell (0 .. N - 2) of the mesh holding chunk-local coordinate v (clamped to the
+    // square), decided by the sample positions themselves, and the fraction across it in
+    // [0, 1] (0 at sampleAt(cell), exactly).
+    int cellOf(double v, double& fraction) const;
     // Height of the triangulated surface at chunk-local (x, z), clamped to the square.
     double heightAt(double x, double z) const;
     // Triangles of the surface, chunk-local, front faces up (counter-clockwise from above).

@@ -101,14 +101,21 @@ std::string chunkFileName(ChunkCoord c) {
     return buf;
 }
 
+int Heightfield::cellOf(double v, double& fraction) const {
+    // The estimate (two roundings) can be one cell off next to a sample: the positions decide.
+    const double f = std::clamp(v * double(n - 1) / size, 0.0, double(n - 1));
+    int i = std::min(int(f), n - 2);
+    if (i < n - 2 && sampleAt(i + 1) <= v) ++i;
+    else if (i > 0 && v < sampleAt(i)) --i;
+    const double x0 = sampleAt(i);
+    fraction = std::clamp((v - x0) / (sampleAt(i + 1) - x0), 0.0, 1.0);
+    return i;
+}
+
 double Heightfield::heightAt(double x, double z) const {
-    // Cell coordinates; the surface is two triangles per cell split along (i,j)-(i+1,j+1).
-    const double cell = size / double(n - 1);
-    double fx = std::clamp(x / cell, 0.0, double(n - 1));
-    double fz = std::clamp(z / cell, 0.0, double(n - 1));
-    int i = std::min(int(fx), n - 2);
-    int j = std::min(int(fz), n - 2);
-    double u = fx - i, v = fz - j;
+    // The surface is two triangles per cell split along (i,j)-(i+1,j+1), as toMesh() places them.
+    double u = 0, v = 0;
+    const int i = cellOf(x, u), j = cellOf(z, v);
     double h00 = at(i, j), h10 = at(i + 1, j), h01 = at(i, j + 1), h11 = at(i + 1, j + 1);
     // Triangle (i,j),(i+1,j),(i+1,j+1) holds u >= v; (i,j),(i+1,j+1),(i,j+1) holds v >= u.
     if (u >= v) return h00 + u * (h10 - h00) + v * (h11 - h10);
@@ -117,10 +124,9 @@ double Heightfield::heightAt(double x, double z) const {
 
 Mesh Heightfield::toMesh() const {
     Mesh m;
-    const double cell = size / double(n - 1);
     m.positions.reserve(size_t(n) * size_t(n));
     for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) m.positions.emplace_back(i * cell, at(i, j), j * cell);
+        for (int i = 0; i < n; ++i) m.positions.emplace_back(sampleAt(i), at(i, j), sampleAt(j));
     auto idx = [&](int i, int j) { return uint32_t(j * n + i); };
     for (int j = 0; j + 1 < n; ++j)
         for (int i = 0; i + 1 < n; ++i) {

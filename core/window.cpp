@@ -79,19 +79,15 @@ std::optional<double> terrainExtremeOver(const BakeWindow& w, double x0, double 
     std::optional<double> lowest;
     const bool covered = forTerrainsOver(w, x0, z0, x1, z1, 64, [&](const WindowObject& o) {
         const Heightfield& hf = *o.heightfield;
-        const int cells = hf.n - 1;
-        const double cell = hf.size / double(cells);
-        // The rectangle in this terrain's sample units, clamped to its square.
-        const double f0 = std::clamp((x0 - o.lsTerrainOrigin.x) / cell, 0.0, double(cells));
-        const double f1 = std::clamp((x1 - o.lsTerrainOrigin.x) / cell, 0.0, double(cells));
-        const double g0 = std::clamp((z0 - o.lsTerrainOrigin.z) / cell, 0.0, double(cells));
-        const double g1 = std::clamp((z1 - o.lsTerrainOrigin.z) / cell, 0.0, double(cells));
-        const int i0 = std::min(int(f0), cells - 1), i1 = std::min(int(f1), cells - 1);
-        const int j0 = std::min(int(g0), cells - 1), j1 = std::min(int(g1), cells - 1);
+        // The rectangle's corners in this terrain's cells (Heightfield::cellOf: the mesh's
+        // own sample positions), clamped to its square.
+        double f0 = 0, f1 = 0, g0 = 0, g1 = 0;
+        const int i0 = hf.cellOf(x0 - o.lsTerrainOrigin.x, f0), i1 = hf.cellOf(x1 - o.lsTerrainOrigin.x, f1);
+        const int j0 = hf.cellOf(z0 - o.lsTerrainOrigin.z, g0), j1 = hf.cellOf(z1 - o.lsTerrainOrigin.z, g1);
         for (int j = j0; j <= j1; ++j)
             for (int i = i0; i <= i1; ++i) {
-                const double u0 = std::clamp(f0 - i, 0.0, 1.0), u1 = std::clamp(f1 - i, 0.0, 1.0);
-                const double v0 = std::clamp(g0 - j, 0.0, 1.0), v1 = std::clamp(g1 - j, 0.0, 1.0);
+                const double u0 = i == i0 ? f0 : 0.0, u1 = i == i1 ? f1 : 1.0;
+                const double v0 = j == j0 ? g0 : 0.0, v1 = j == j1 ? g1 : 1.0;
                 const double h = cellSurfaceMin(hf, i, j, u0, v0, u1, v1, highest) + o.lsTerrainOrigin.y;
                 if (!lowest || (highest ? h > *lowest : h < *lowest)) lowest = h;
             }
@@ -117,9 +113,10 @@ bool BakeWindow::lsGroundOver(double x0, double z0, double x1, double z1, std::v
         [&](const WindowObject& o) {
             const Heightfield& hf = *o.heightfield;
             const int cells = hf.n - 1;
-            const double cell = hf.size / double(cells);
+            // The cell holding v (as the mesh places its samples), widened by `slack` cells.
             auto index = [&](double v, double origin, int slack) {
-                return std::clamp(int(std::floor((v - origin) / cell)) + slack, 0, cells - 1);
+                double fraction = 0;
+                return std::clamp(hf.cellOf(v - origin, fraction) + slack, 0, cells - 1);
             };
             const int i0 = index(x0, o.lsTerrainOrigin.x, -1), i1 = index(x1, o.lsTerrainOrigin.x, 1);
             const int j0 = index(z0, o.lsTerrainOrigin.z, -1), j1 = index(z1, o.lsTerrainOrigin.z, 1);

@@ -14,6 +14,8 @@
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
+#include "core/rounding.h"
+
 namespace shadowcull::geometry {
 
 namespace {
@@ -625,36 +627,74 @@ FrustumFilter::FrustumFilter(const Triangle& t, const LightGeometry& light, doub
     glm::dvec3 n = glm::cross(e1, e2);
     const glm::dvec3 toward = light.directional ? light.direction : t[0] - light.position;
     const double facing = glm::dot(n, toward);
-    const double facingBound = 1e-12 * (glm::length(e1) * glm::length(e2) + glm::length(n)) * glm::length(toward) + 1e-300;
+    const double scale = glm::length(e1) * glm::length(e2) + glm::length(n);
+    const double facingBound = 1e-12 * scale * glm::length(toward) + 1e-300;
     if (!(std::abs(facing) > facingBound)) return;
     if (facing < 0) n = -n;
     nearK_ = light.directional ? std::abs(facing) : 0.0;  // n . d, for the bias
+    // |fl(n . d) - n* . d| (n* the exact normal, d exact): n's components lie within
+    // gamma(5) |e1||e2| of n*'s (see beyond()), the three-term dot rounds by gamma(3)
+    // sum |n_i||d_i|: together <= gamma(5) scale |d|_1; gamma(6) for the bound's own rounding.
+    // Absolute, not relative to n . d: near edge-on, n . d is the small difference of two
+    // products and its error is as large as theirs.
+    const glm::dvec3 ad = glm::abs(light.direction);
+    nearKError_ = light.directional ? gamma(6) * scale * (ad.x + ad.y + ad.z) : 0.0;
     // Near plane: n . (x - a) > 0 is strictly behind the caster (the bias only shrinks it;
     // a dilation r moves it towards the light by r |n|).
-    planes_[3] = Plane{n, t[0], dilation > 0 ? dilation * glm::length(n) * (1 + 1e-9) : 0.0,
-                       glm::length(e1) * glm::length(e2) + glm::length(n), {0, 1}};
+    planes_[3] = makePlane(n, t[0], scale, dilation, 0, 1);
     for (int e = 0; e < 3; ++e) {
         SidePlane side;
         if (!doubleSidePlane(t, e, light, side)) return;
-        const glm::dvec3& sn = side.n;
-        const glm::dvec3& o = side.o;
-        const double scale = side.scale;
-        planes_[e] = Plane{sn, o, dilation > 0 ? dilation * glm::length(sn) * (1 + 1e-9) : 0.0, scale, {e, (e + 1) % 3}};
+        planes_[e] = makePlane(side.n, side.o, side.scale, dilation, e, (e + 1) % 3);
     }
     // The near plane holds all three caster vertices; sides hold the two of their edge.
     valid_ = true;
 }
 
+// A plane of the filter, moved outward by `dilation` as the exact frustum moves its twin
+// (dilation * normUpper(n*), n* the exact normal read back through CGAL's interval). The
+// offsets differ by dilation (1 + 1e-9) | |to_double(n*)| - |n| | plus their roundings:
+// |n - n*| <= gamma(5) sqrt(2) |e1||e2| (see beyond()), to_double(n*) lies in CGAL's
+// interval around n*, at most twice that wide, so the normals differ by <= 3 sqrt(2)
+// gamma(5) |e1||e2| <= gamma(22) scale; the two lengths, products and the 1e-9 factor
+// round each offset by gamma(6): kError = dilation gamma(23) scale + gamma(12) k.
+FrustumFilter::Plane FrustumFilter::makePlane(const glm::dvec3& n, const glm::dvec3& o, double scale, double dilation,
+                                              int v0, int v1) {
+    Plane p{n, o, 0.0, scale, {v0, v1}, 0.0};
+    if (!(dilation > 0)) return p;
+    p.k = dilation * glm::length(n) * (1 + 1e-9);
+    p.kError = dilation * gamma(23) * scale + gamma(12) * p.k;
+    return p;
+}
+
+// v = fl(fl(fl(n . fl(x - o)) + k) - fl(beta K)), K = nearK_ (near plane only), against
+// the exact frustum's n* . (x - o) + k* - beta n* . d. Derivation (u = 2^-53, gamma(n)
+// = n u / (1 - n u), core/rounding.h; computed magnitudes throughout):
+//   x - o rounds once (gamma(1) of it); n = fl(e1 x e2), edges rounded once, lies within
+//   gamma(5) (|e1_j||e2_k| + |e1_k||e2_j|) <= gamma(5) |e1||e2| of n* per component (two
+//   products and a difference on inputs carrying gamma(1) each); the three-term dot rounds
+//   by gamma(3) sum |n_i||x_i - o_i|: dot error <= gamma(6) scale |x - o|_1;
+//   + k and - shift round twice: gamma(2) (|dot| + |k| + |shift|), |dot| <= (1 + gamma(3))
+//   scale |x - o|_1, and gamma(6) + gamma(2) (1 + gamma(3)) <= gamma(9);
+//   k is off the exact offset by kError; shift = fl(beta K) rounds by gamma(1) and K is off
+//   n* . d by nearKError_: beta nearKError_.
+// Each gamma one above the sum for the bound's own rounding (a few positive operations).
+bool FrustumFilter::beyond(const Plane& p, const glm::dvec3& x, double beta) const {
+    const double shift = &p == &planes_[3] ? beta * nearK_ : 0.0;
+    const double shiftError = &p == &planes_[3] ? beta * nearKError_ : 0.0;
+    const glm::dvec3 d = x - p.o;
+    const double v = glm::dot(p.n, d) + p.k - shift;
+    const glm::dvec3 ad = glm::abs(d);
+    const double bound =
+        gamma(10) * p.scale * (ad.x + ad.y + ad.z) + gamma(4) * (std::abs(p.k) + std::abs(shift)) + p.kError + shiftError + 1e-300;
+    return v < -bound;
+}
+
 // Every vertex of r strictly outside `p` (beyond rounding), or, without dilation, equal
-// to a caster vertex that lies on `p` exactly.
-// `shift` is subtracted from the plane's function (the near plane with a bias).
-bool FrustumFilter::outside(const Plane& p, const Triangle& r, double shift) const {
+// to a caster vertex that lies on `p` exactly. `beta`: the bias (the near plane only).
+bool FrustumFilter::outside(const Plane& p, const Triangle& r, double beta) const {
     for (const glm::dvec3& x : r) {
-        const glm::dvec3 d = x - p.o;
-        const double v = glm::dot(p.n, d) + p.k - shift;
-        const double bound =
-            1e-12 * (p.scale * (std::abs(d.x) + std::abs(d.y) + std::abs(d.z)) + std::abs(p.k) + std::abs(shift)) + 1e-300;
-        if (v < -bound) continue;
+        if (beyond(p, x, beta)) continue;
         bool on = false;
         if (shared_) {
             if (&p == &planes_[3]) on = x == caster_[0] || x == caster_[1] || x == caster_[2];
@@ -682,7 +722,7 @@ bool FrustumFilter::certainlyMisses(const Triangle& r, double beta) const {
     if (!light_.directional) beta = 0;
     if (shared_ && receiverPlaneInFront(r, beta)) return true;
     // The near plane moved back by the bias: n . (x - a) - beta n.d > 0 (n.d > 0).
-    if (outside(planes_[3], r, beta * nearK_)) return true;
+    if (outside(planes_[3], r, beta)) return true;
     // Convexity: a triangle with every vertex outside a closed side (or outside-or-on the
     // open near plane, or on a side only where the caster itself is) has no point in the
     // frustum but possibly the caster's own boundary, which is not behind the caster.
@@ -694,15 +734,8 @@ bool FrustumFilter::certainlyMisses(const Triangle& r, double beta) const {
 bool FrustumFilter::allInFront(const glm::dvec3* pts, size_t count, double beta) const {
     if (!valid_) return false;
     if (!light_.directional) beta = 0;
-    const Plane& p = planes_[3];
-    const double shift = beta * nearK_;
-    for (size_t i = 0; i < count; ++i) {
-        const glm::dvec3 d = pts[i] - p.o;
-        const double v = glm::dot(p.n, d) + p.k - shift;
-        const double bound =
-            1e-12 * (p.scale * (std::abs(d.x) + std::abs(d.y) + std::abs(d.z)) + std::abs(p.k) + std::abs(shift)) + 1e-300;
-        if (!(v < -bound)) return false;
-    }
+    for (size_t i = 0; i < count; ++i)
+        if (!beyond(planes_[3], pts[i], beta)) return false;
     return true;
 }
 

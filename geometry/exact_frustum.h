@@ -128,15 +128,21 @@ private:
     struct Plane {
         glm::dvec3 n{0.0}, o{0.0};  // inside: n . (x - o) + k > 0 (sides closed, near open)
         double k = 0.0;
-        double scale = 0.0;         // size of the normal's terms, for the error bound
+        double scale = 0.0;         // |e1||e2| + |n| of the cross product n = e1 x e2, for the error bound
         int onPlane[2] = {-1, -1};  // caster vertices that lie on this plane exactly
+        double kError = 0.0;        // bound on |k - the exact frustum's offset| (dilation)
     };
-    bool outside(const Plane& p, const Triangle& r, double shift) const;
+    static Plane makePlane(const glm::dvec3& n, const glm::dvec3& o, double scale, double dilation, int v0, int v1);
+    // True when the exact frustum's function of `p` at x, less beta n.d for the near plane,
+    // is certainly negative (beyond every rounding of its double evaluation).
+    bool beyond(const Plane& p, const glm::dvec3& x, double beta) const;
+    bool outside(const Plane& p, const Triangle& r, double beta) const;
     bool receiverPlaneInFront(const Triangle& r, double beta) const;
     Triangle caster_;
     LightGeometry light_;
     bool valid_ = false, shared_ = false;
-    double nearK_ = 0.0;  // directional: n . d of the caster's normal (away from the light)
+    double nearK_ = 0.0;       // directional: n . d of the caster's normal (away from the light)
+    double nearKError_ = 0.0;  // bound on |nearK_ - the exact n . d|
     Plane planes_[4];  // three sides, then the near plane (the caster's own)
 };
 

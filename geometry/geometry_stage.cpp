@@ -234,16 +234,7 @@ private:
         return bias(r);
     }
     // The bias, and for directional lights the slope term (constant over a triangle).
-    double bias(const Receiver& r) const {
-        double b = L_.bias;
-        if (L_.slopeBias > 0 && L_.type == LightType::Directional) {
-            glm::dvec3 n = glm::cross(r.tri[1] - r.tri[0], r.tri[2] - r.tri[0]);
-            const double len = glm::length(n);
-            const double c = len > 0 ? std::abs(glm::dot(n / len, L_.direction)) : 0.0;
-            if (c > 1e-6) b += L_.slopeBias * std::sqrt(std::max(0.0, 1 - c * c)) / c;
-        }
-        return std::max(0.0, b * (1 - 1e-9) - 1e-12);  // a lower bound: conservative
-    }
+    double bias(const Receiver& r) const { return biasLowerBound(L_, r.tri); }
 
     const BakeWindow& w_;
     const Light& L_;
@@ -378,6 +369,46 @@ std::string worldBox(const Aabb& b, const glm::dvec3& origin) { return worldPoin
 
 }  // namespace
 
+namespace {
+
+// A lower bound of slopeBias tan(theta) = slopeBias |n* x d| / |n* . d| (n* the exact normal
+// of `tri`, d the light's direction: both exact for the double inputs), even once the caller
+// multiplies nothing more; 0 where nothing useful is certain. Derivation (u = 2^-53,
+// gamma(n) = n u / (1 - n u), core/rounding.h; computed magnitudes throughout; each gamma
+// one above its sum for the bound's own rounding):
+//   n = fl(e1 x e2), edges rounded once: |n - n*|_i <= gamma(5) (|e1_j||e2_k| + |e1_k||e2_j|),
+//     so |n - n*| <= gamma(5) sqrt(2) |e1||e2| (a needle's n is this far off however small);
+//   c = fl(n x d): |c - n* x d| <= sqrt(2) (gamma(2) |n| + gamma(5) |e1||e2|) |d|
+//     <= gamma(8) scale |d| (scale = |e1||e2| + |n|); |c| = fl-length (1 + theta), theta
+//     <= gamma(3): |n* x d| >= length - gamma(4) length - gamma(9) scale |d|;
+//   t = fl(n . d): |t - n* . d| <= gamma(3) sum |n_i||d_i| + gamma(5) |e1||e2| |d|_1
+//     <= gamma(5) scale |d|_1: |n* . d| <= |t| + gamma(6) scale |d|_1;
+//   the subtraction, addition and division round the quotient by at most gamma(3) upward;
+//   the factor 1 - gamma(6) (the double 1 - 6u) and the product with slopeBias (one more u)
+//   leave it below: (1 - 6u)(1 + u)^2 / (1 - 3u) < 1.
+// A receiver within 1e-6 of edge-on (tan > 1e6) gets no slope term: nothing is lost that a
+// witness could show (the raycast stage asks cos(theta) > 1e-6 too).
+double slopeTermLowerBound(const Light& L, const Triangle& tri) {
+    const glm::dvec3 e1 = tri[1] - tri[0], e2 = tri[2] - tri[0];
+    const glm::dvec3 n = glm::cross(e1, e2), &d = L.direction, ad = glm::abs(d);
+    const double scale = glm::length(e1) * glm::length(e2) + glm::length(n);
+    const double length = glm::length(glm::cross(n, d));
+    const double num = length - (gamma(4) * length + gamma(9) * scale * glm::length(d));
+    const double den = std::abs(glm::dot(n, d)) + gamma(6) * scale * (ad.x + ad.y + ad.z);
+    if (!(num > 0) || !(num < 1e6 * den)) return 0.0;
+    return L.slopeBias * (num / den * (1 - gamma(6)));
+}
+
+}  // namespace
+
+// bias + the slope term's lower bound y, rounded down: fl(bias + y) <= (bias + y)(1 + u),
+// times the double 1 - gamma(2) (= 1 - 2u) and rounded again: (1 + u)^2 (1 - 2u) < 1.
+double biasLowerBound(const Light& L, const Triangle& tri) {
+    if (!(L.slopeBias > 0) || L.type != LightType::Directional) return L.bias;  // exact: nothing rounds
+    const double y = slopeTermLowerBound(L, tri);
+    return std::max(L.bias, (L.bias + y) * (1 - gamma(2)));
+}
+
 Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
     const auto t0 = std::chrono::steady_clock::now();
     candidates_.clear();
@@ -489,8 +520,9 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 const LightGeometry& lg = lightGeom[size_t(l)];
                 const ReceiverRules& rl = *rules[size_t(l)];
                 const bool local = L.type != LightType::Directional;
-                // The smallest bias the receiver rules give any receiver (a lower bound).
-                const double leastBias = std::max(0.0, L.bias * (1 - 1e-9) - 1e-12);
+                // The smallest bias the receiver rules give any receiver (biasLowerBound is
+                // never below the bias, which is exact).
+                const double leastBias = L.bias;
                 // Calls test(k, tri) for the receivers of the window the query may reach
                 // (both levels of the broad phase), until it returns true.
                 // `objectMay(k)`: false when no receiver of object k can be behind (then its

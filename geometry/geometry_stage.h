@@ -7,6 +7,7 @@
 // Shadow volumes: F. C. Crow, "Shadow Algorithms for Computer Graphics", SIGGRAPH 1977.
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -29,6 +30,14 @@ struct GeometryOptions {
     // cost less. Tests lower it to run the node rules on small meshes.
     size_t nodeTerrainRuleFrom = 1024;
 };
+
+// A lower bound of the bias the light `L` gives the receiver triangle `tri` (window-local
+// metres): beta = bias + slopeBias tan(theta) for a directional light, theta the angle
+// between its direction and the triangle's normal (exact for the double inputs), the bias
+// alone for point and spot lights (semantics.md). Never above the exact beta; never below
+// the bias. Where the slope term cannot be bounded usefully (a needle too thin for double,
+// a receiver within 1e-6 of edge-on to the light) it is left out.
+double biasLowerBound(const Light& L, const std::array<glm::dvec3, 3>& tri);
 
 class GeometryStage : public Stage {
 public:

@@ -423,6 +423,72 @@ TEST(TerrainReader, SurfaceSplitsAlongTheMainDiagonal) {
     }
 }
 
+// Issue 34: terrain seams. Sample i lies at (i S) / (N - 1): the last column and row land on
+// exactly S, where the next chunk's first lie once placed (whole chunks apart, exact in
+// double), so neighbouring terrains meet without a gap. S / (N - 1) first, then times i, put
+// the last one an ulp short for S = 100, N = 98 (99.99999999999999), and for many more.
+TEST(TerrainReader, LastSampleLandsOnTheChunkEdgeAndSeamsAreWatertight) {
+    int pairs = 0;
+    for (double S : {1.0, 3.0, 10.0, 64.0, 100.0, 128.0, 250.0, 333.0, 1000.0, 4096.0, 1e5, 0.1 * 1000, 7.3, 99.5}) {
+        for (int n = 2; n <= 300; n += (n < 40 ? 1 : 17)) {
+            Heightfield hf;
+            hf.n = n;
+            hf.size = S;
+            hf.heights.assign(size_t(n) * size_t(n), 0.0);
+            const Mesh m = hf.toMesh();
+            ++pairs;
+            for (int k = 0; k < n; ++k) {
+                // Column n - 1 of row k, and row n - 1 of column k.
+                const glm::dvec3& right = m.positions[size_t(k) * size_t(n) + size_t(n - 1)];
+                const glm::dvec3& top = m.positions[size_t(n - 1) * size_t(n) + size_t(k)];
+                const glm::dvec3& left = m.positions[size_t(k) * size_t(n)];
+                const glm::dvec3& bottom = m.positions[size_t(k)];
+                ASSERT_EQ(right.x, S) << "S " << S << " n " << n;
+                ASSERT_EQ(top.z, S) << "S " << S << " n " << n;
+                ASSERT_EQ(left.x, 0.0);
+                ASSERT_EQ(bottom.z, 0.0);
+                // Placed in a window, whole chunks from its origin (core/window.cpp): this
+                // chunk's last column on the next chunk's first, for the chunks left of,
+                // at and right of the origin; the rows' z agree across the seam.
+                for (double dx : {-1.0, 0.0})
+                    ASSERT_EQ(dx * S + right.x, (dx + 1) * S + left.x) << "S " << S << " n " << n << " dx " << dx;
+                ASSERT_EQ(right.z, left.z);
+            }
+        }
+    }
+    EXPECT_GT(pairs, 500);  // (S, N) pairs
+}
+
+// The terrain's cell lookup agrees with its mesh: at every sample the mesh places, the
+// height is that sample's (exactly, but for the last column and row: interpolated from
+// the cell before, within rounding), and a point just past a sample lies on the next cell.
+TEST(TerrainReader, HeightLookupAgreesWithTheMeshAtEverySample) {
+    for (double S : {7.3, 100.0, 333.0, 1e5}) {
+        for (int n : {2, 3, 17, 98, 129, 257}) {
+            Heightfield hf;
+            hf.n = n;
+            hf.size = S;
+            for (int k = 0; k < n * n; ++k) hf.heights.push_back(std::fmod(k * 7.77, 13.0) - 5);
+            const Mesh m = hf.toMesh();
+            for (int j = 0; j < n; ++j)
+                for (int i = 0; i < n; ++i) {
+                    const glm::dvec3& p = m.positions[size_t(j) * size_t(n) + size_t(i)];
+                    const double h = hf.heightAt(p.x, p.z);
+                    if (i < n - 1 && j < n - 1) ASSERT_EQ(h, p.y) << "S " << S << " n " << n << " i " << i << " j " << j;
+                    else ASSERT_NEAR(h, p.y, 1e-13) << "S " << S << " n " << n << " i " << i << " j " << j;
+                }
+            // Just past column i (i < n - 1) the surface is cell i's: raising sample
+            // (i + 1, 0) moves the height there, raising (i - 1, 0) does not.
+            for (int i = 1; i + 1 < n; ++i) {
+                const double x = std::nextafter(m.positions[size_t(i)].x, S);
+                Heightfield up = hf;
+                up.heights[size_t(i - 1)] += 1;
+                ASSERT_EQ(up.heightAt(x, 0), hf.heightAt(x, 0)) << "S " << S << " n " << n << " i " << i;
+            }
+        }
+    }
+}
+
 TEST(TerrainReader, RejectsBadHeightmaps) {
     fs::path dir = freshTestDir();
     writePng(dir / "8bit.png", 3, 3, 8, std::vector<unsigned>(9, 0));
