@@ -158,6 +158,11 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     bake->add_flag("--gpu-terrain", opt.gpuTerrain,
                    "Also send terrain groups to the GPU confirmation (slow; they are rarely proved there)");
+    bake->add_option("--gpu-close-up", opt.gpuCloseUpResolution,
+                     "Pixels per side of the GPU confirmation's second look, each directional view framed on the "
+                     "casters still undecided (0: none; at most --gpu-resolution)")
+        ->check(within(0, 16384))
+        ->capture_default_str();
     bake->add_flag("--dry-run", [&](int64_t) { opt.write = false; }, "Compute and report, but write no chunk file");
     bake->add_flag("--quiet,-q", quiet, "No progress bar and no summary");
     bake->add_flag("--resume", opt.resume,

@@ -11,6 +11,10 @@ namespace shadowcull::cli {
 Status refuseInputAsOutput(const std::string& output, const std::vector<std::string>& inputs, const std::string& option) {
     struct stat out {};
     if (output.empty() || ::stat(output.c_str(), &out) != 0) return Status::ok();  // nothing there to replace
+    // A file is written here: a directory (".", the space, --out) would only fail at the
+    // final rename, after everything else was written.
+    if (S_ISDIR(out.st_mode))
+        return makeError(ErrorKind::BadInput, output, 0, option + " names a directory; give the path of the file to write");
     auto same = [&](const std::string& input) {
         struct stat in {};
         return ::stat(input.c_str(), &in) == 0 && in.st_dev == out.st_dev && in.st_ino == out.st_ino;

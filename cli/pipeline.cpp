@@ -195,6 +195,7 @@ StageRunner::StageRunner(const BakeOptions& opt, std::future<Status>* glProbe)
           gpu::GpuConfirmOptions o;
           o.resolution = opt.gpuResolution;
           o.includeTerrain = opt.gpuTerrain;
+          o.closeUpResolution = opt.gpuCloseUpResolution;
           return o;
       }()),
       baseline_(gpu::GpuBaselineOptions{opt.gpuResolution}) {
@@ -221,6 +222,7 @@ StageRunner::StageRunner(const BakeOptions& opt, std::future<Status>* glProbe)
     }
     candidatePass_ = opt.useGeometry && opt.useRaycast && !opt.gpuBaseline;
     densePass_ = useGpu && opt.useRaycast;
+    closeUpPass_ = useGpu && opt.gpuCloseUpResolution > 0;
     witnessBaselineCulls_ = opt.gpuBaseline && opt.witnessBaselineCulls;
 }
 
@@ -240,6 +242,8 @@ std::vector<StageTiming> StageRunner::timings() const {
     for (Stage* s : stages_) t.push_back({s->name(), {}});
     if (candidatePass_) t.push_back({"raycast (geometry candidates)", {}});
     if (densePass_) t.push_back({"raycast (gpu pixels)", {}});
+    if (closeUpPass_) t.push_back({"gpu (close-up)", {}});
+    if (closeUpPass_ && densePass_) t.push_back({"raycast (close-up pixels)", {}});
     return t;
 }
 
@@ -281,12 +285,27 @@ Status StageRunner::bake(const BakeWindow& window, ChunkVerdicts& cv, std::vecto
                 if (Status status = stage->run(window, probe, st); !status) return status;
         for (const Decision* d : culled) baselineCullsWitnessed_ += d->verdict == Verdict::Kept;
     }
+    size_t next = stages_.size() + (candidatePass_ ? 1 : 0);  // the timings after the stages'
     if (densePass_) {
         // The dense witness search where the GPU confirmation saw samples pass.
         StageStats st;
         if (Status status = rays_.searchAt(window, cv, denseSearches(confirm_.passedPixels(), cv), st); !status)
             return status;
-        timings.back().stats.add(st);
+        timings[next++].stats.add(st);
+    }
+    if (closeUpPass_) {
+        if (Status i = interrupted(); !i) return i;
+        StageStats st;
+        if (Status status = confirm_.runCloseUp(window, cv, st); !status) return status;
+        timings[next++].stats.add(st);
+        if (densePass_) {
+            StageStats rs;
+            if (Status status = rays_.searchAt(window, cv, denseSearches(confirm_.passedPixels(), cv), rs,
+                                               "witness ray where the GPU stage's close-up saw samples pass");
+                !status)
+                return status;
+            timings[next++].stats.add(rs);
+        }
     }
     return Status::ok();
 }
@@ -335,7 +354,11 @@ public:
     // together, each with its own exclusive lock as well, while a whole bake needs it alone.
     Status acquire(const std::string& dir, const std::string& name = ".shadowcull-bake.lock", bool shared = false) {
         const std::string path = (fs::path(dir) / name).string();
-        fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        // Never through a symbolic link: the pid written below would land in its target.
+        fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_NOFOLLOW | O_CLOEXEC, 0644);
+        if (fd_ < 0 && errno == ELOOP)
+            return makeError(ErrorKind::BadInput, path, 0,
+                             "the bake lock is a symbolic link; a bake never writes through one (remove it)");
         if (fd_ < 0) return makeError(ErrorKind::Io, path, 0, std::string("cannot create the bake lock: ") + std::strerror(errno));
         if (::flock(fd_, (shared ? LOCK_SH : LOCK_EX) | LOCK_NB) != 0) {
             char pid[32] = {};
@@ -404,6 +427,48 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
 }
 
 namespace {
+
+// Where a chunk's bytes go: in place (through a symlink, to its target), or a copy under
+// --out, by name: a symbolic link there is never followed (writableTargets refuses it).
+std::string outputPathFor(const BakeOptions& opt, const std::string& chunkPath) {
+    return opt.outDir.empty() ? writeTargetFor(chunkPath) : (fs::path(opt.outDir) / fs::path(chunkPath).filename()).string();
+}
+
+// The chunks of `targets` whose output may be written. An output under --out that is a
+// symbolic link (a copy of the space made with `cp -as` holds one per chunk, each leading
+// back to the space) or one of the bake's inputs stops the bake before anything is
+// written; a chunk whose file may not be replaced (read-only, another owner) is left out
+// with a warning in `diagnostics`, unless --force-write.
+Expected<std::vector<ChunkCoord>> writableTargets(const BakeOptions& opt, const SpaceSource& source,
+                                                  const std::vector<ChunkCoord>& targets,
+                                                  const std::vector<std::string>& inputs,
+                                                  std::vector<Diagnostic>& diagnostics) {
+    const bool inPlace = opt.outDir.empty();
+    std::vector<ChunkCoord> writable;
+    for (ChunkCoord c : targets) {
+        const std::string& path = source.chunks().at(c).path;
+        const std::string target = outputPathFor(opt, path);
+        if (!inPlace) {
+            std::error_code ec;
+            if (fs::is_symlink(target, ec))
+                return makeError(ErrorKind::BadInput, target, 0,
+                                 "--out: the output is a symbolic link (to " + fs::read_symlink(target, ec).string() +
+                                     "); --out writes copies and never writes through a link (remove it)");
+            if (Status s = refuseInputAsOutput(target, inputs, "--out"); !s) return s.error();
+        }
+        if (std::string why = opt.forceWrite ? "" : replaceRefusal(target); !why.empty()) {
+            diagnostics.push_back({path, 0, (inPlace ? "the chunk file is " : "the output " + target + " is ") + why +
+                                                "; not baked (--force-write replaces it anyway)"});
+            continue;
+        }
+        // A symlinked chunk is staged beside its target, which may lie outside the
+        // output directory: clear a temporary a killed bake left there too.
+        if (std::error_code tec; fs::is_regular_file(fs::symlink_status(tempPathFor(target), tec)))
+            fs::remove(tempPathFor(target), tec);
+        writable.push_back(c);
+    }
+    return writable;
+}
 
 // User and system time of the process so far, every thread (seconds).
 double processCpuSeconds() {
@@ -516,33 +581,12 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         else if (const int n = removeStaleTempFiles(outDir))
             result.notes.push_back("removed " + std::to_string(n) + " temporary file(s) a killed bake left in " + outDir);
     }
-    // Where each chunk's bytes go: in place (through a symlink to its target), or a copy
-    // under --out. A chunk file that may not be replaced is not baked at all.
-    auto targetOf = [&](const std::string& chunkPath) {
-        return writeTargetFor(opt.outDir.empty() ? chunkPath : (fs::path(opt.outDir) / fs::path(chunkPath).filename()).string());
-    };
+    auto targetOf = [&](const std::string& chunkPath) { return outputPathFor(opt, chunkPath); };
     auto refuse = [&](const std::string& chunkPath, const std::string& why) { result.diagnostics.push_back({chunkPath, 0, why}); };
     if (opt.write) {
-        std::vector<ChunkCoord> writable;
-        for (ChunkCoord c : targets) {
-            const std::string& path = source.chunks().at(c).path;
-            const std::string target = targetOf(path);
-            std::error_code ec;
-            const bool inPlace = fs::equivalent(target, path, ec);
-            if (!inPlace)
-                if (Status s = refuseInputAsOutput(target, inputs, "--out"); !s) return s.error();
-            if (std::string why = opt.forceWrite ? "" : replaceRefusal(target); !why.empty()) {
-                refuse(path, (inPlace ? "the chunk file is " : "the output " + target + " is ") + why +
-                                 "; not baked (--force-write replaces it anyway)");
-                continue;
-            }
-            // A symlinked chunk is staged beside its target, which may lie outside the
-            // output directory: clear a temporary a killed bake left there too.
-            if (std::error_code tec; fs::is_regular_file(fs::symlink_status(tempPathFor(target), tec)))
-                fs::remove(tempPathFor(target), tec);
-            writable.push_back(c);
-        }
-        targets = std::move(writable);
+        Expected<std::vector<ChunkCoord>> writable = writableTargets(opt, source, targets, inputs, result.diagnostics);
+        if (!writable) return writable.error();
+        targets = std::move(*writable);
     }
 
     // 4. Bake every chunk; stage its new text in a temporary file beside the target.

@@ -54,6 +54,11 @@ struct BakeOptions {
     // many of them a shadow is seen for (bake's note; `check` lists them). Not written.
     bool witnessBaselineCulls = false;
     int gpuResolution = 1024;  // pixels per side of each light view
+    // After the GPU confirmation and its witness search, the confirmation again for the
+    // directional bits still undecided, each view framed on the casters it examines, at
+    // this many pixels per side (GpuConfirmStage::runCloseUp: more 0s, more fragments; at
+    // most gpuResolution). 0: no close-up. `bake --gpu-close-up N`.
+    int gpuCloseUpResolution = 512;
     bool gpuTerrain = false;   // also send terrain groups to the GPU confirmation
     bool write = true;        // false: compute only (tests, reports)
     // Per-bit verdicts as JSON (bake --results), written with the chunk files: staged
@@ -157,6 +162,9 @@ private:
     std::vector<Stage*> stages_;
     bool candidatePass_ = false;  // witness rays at the geometry stage's candidates
     bool densePass_ = false;
+    // The GPU confirmation again for the directional bits still undecided, each view framed
+    // on the casters (GpuConfirmStage::runCloseUp), then witness rays at its pixels.
+    bool closeUpPass_ = false;
     bool witnessBaselineCulls_ = false;
     uint64_t baselineCullsWitnessed_ = 0;
     Status status_;

@@ -30,6 +30,7 @@ void hashSettings(Hasher& h, const SpaceSettings& S, const BakeOptions& opt) {
     h.str(kBakeLogicVersion);
     h.pod(opt.useRaycast).pod(opt.useGeometry).pod(opt.raycast.areaSamples).pod(opt.raycast.maxFeatureSamples);
     h.pod(opt.raycast.maxHitsPerRay).pod(opt.useGpu).pod(opt.gpuBaseline).pod(opt.gpuResolution).pod(opt.gpuTerrain);
+    h.pod(opt.gpuCloseUpResolution);
     h.pod(S.chunkSize).pod(S.terrainTolerance);
     // `neighbours` is the window of the original method and of the benchmarks' window-only
     // bake; the analytic bake's windows do not depend on it (core/window_plan.h).

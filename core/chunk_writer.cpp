@@ -396,7 +396,12 @@ Expected<StagedFile> StagedFile::open(const std::string& path, bool keepOwner) {
     // Keep the permissions users gave the file; a new file gets the umask's default.
     struct stat st {};
     bool existed = ::stat(path.c_str(), &st) == 0;
-    f.fd_ = ::open(f.temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    // A new file of our own, never through a name someone left there: O_EXCL | O_NOFOLLOW,
+    // and a stale temporary (a killed bake's, or a symbolic link planted in its place) is
+    // unlinked first, which removes the name and never touches what a link points to.
+    f.fd_ = ::open(f.temp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+    if (f.fd_ < 0 && errno == EEXIST && ::unlink(f.temp_.c_str()) == 0)
+        f.fd_ = ::open(f.temp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
     if (f.fd_ < 0) return ioError(path, "cannot create temporary file " + f.temp_).error();
     auto fail = [&](const std::string& what) {
         Status s = ioError(path, what);  // before close/unlink can change errno

@@ -313,7 +313,14 @@ struct GltfDocument::Impl {
             } else if (uri.find("://") != std::string::npos) {
                 fail(where + ".uri: remote buffer '" + uri + "' is not supported");
             } else {
-                const fs::path file = fs::path(path).parent_path() / percentDecode(uri);
+                // A scene names files beside it or below: an absolute path or one that climbs
+                // out (../) could make a bake read any file (/etc/passwd as a buffer).
+                const fs::path relative = fs::path(percentDecode(uri)).lexically_normal();
+                if (relative.is_absolute() || relative.has_root_name() || relative.has_root_directory() ||
+                    (!relative.empty() && *relative.begin() == ".."))
+                    fail(where + ".uri: '" + uri + "' lies outside the scene's directory; buffer files are read only "
+                         "from the scene's directory or below it");
+                const fs::path file = fs::path(path).parent_path() / relative;
                 readFile(file, where + ": buffer file", data);
                 sourceFiles.push_back(file.string());
             }

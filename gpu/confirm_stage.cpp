@@ -150,6 +150,8 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
         for (size_t k = 0; k < ov.decisions.size(); ++k)
             if (ov.decisions[k].verdict == Verdict::Undecided) lights[k % size_t(cv.lightCount)] = true;
     }
+    if (closeUp_)  // a close-up frames directional views only (local lights' views are fixed)
+        for (size_t l = 0; l < lights.size(); ++l) lights[l] = lights[l] && w.lsLights[l].type == LightType::Directional;
     if (std::none_of(lights.begin(), lights.end(), [](bool b) { return b; })) return Status::ok();
     // The pieces are computed on this thread and on TBB's workers, which Embree's builds
     // leave with flush-to-zero and denormals-are-zero: one mode everywhere, so that the GL
@@ -177,10 +179,17 @@ Status GpuConfirmStage::run(const BakeWindow& w, ChunkVerdicts& cv, StageStats& 
     return Status::ok();
 }
 
+Status GpuConfirmStage::runCloseUp(const BakeWindow& w, ChunkVerdicts& cv, StageStats& stats) {
+    closeUp_ = true;
+    const Status s = run(w, cv, stats);
+    closeUp_ = false;
+    return s;
+}
+
 Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, LightWork& work, StageStats& stats) {
     const Light& L = w.lsLights[size_t(l)];
     const bool persp = L.type != LightType::Directional;
-    const int res = options_.resolution;
+    const int res = closeUp_ ? std::min(options_.closeUpResolution, options_.resolution) : options_.resolution;
 
     // The bits to examine: undecided (group, light l) of the centre chunk. Query id = index.
     std::vector<std::vector<int>> queryOf(w.objects.size());
@@ -213,12 +222,16 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     // A directional light's view frames what the window holds within one chunk of the centre
     // chunk's content (the original 3 x 3 window's), not the whole window: only the casters'
     // pixels are read, every ray through them is in the view (lightViews, lsFocus), and a
-    // window many chunks long under a low sun does not spread the pixels. (Framing the
-    // examined casters alone proves more 0s, at many times the fragments:
-    // docs/performance.md, "Receivers from the whole space".)
-    const Aabb lsFrame{glm::max(w.lsBounds.min, w.lsCentreBounds.min - glm::dvec3(w.chunkSize, 0.0, w.chunkSize)),
-                       glm::min(w.lsBounds.max, w.lsCentreBounds.max + glm::dvec3(w.chunkSize, 0.0, w.chunkSize))};
-    const std::vector<LightView> views = lightViews(w, L, res, w.lsCentreBounds.empty() ? nullptr : &lsFrame);
+    // window many chunks long under a low sun does not spread the pixels. A close-up frames
+    // the examined casters alone (runCloseUp).
+    Aabb lsFrame{glm::max(w.lsBounds.min, w.lsCentreBounds.min - glm::dvec3(w.chunkSize, 0.0, w.chunkSize)),
+                 glm::min(w.lsBounds.max, w.lsCentreBounds.max + glm::dvec3(w.chunkSize, 0.0, w.chunkSize))};
+    if (closeUp_) {
+        lsFrame = Aabb{};
+        for (size_t k = 0; k < queryOf.size(); ++k)
+            if (!queryOf[k].empty()) lsFrame.extend(w.objects[k].lsBounds);
+    }
+    const std::vector<LightView> views = lightViews(w, L, res, lsFrame.empty() ? nullptr : &lsFrame);
     if (views.empty()) return Status::ok();
     // Perspective: a near plane below all geometry, so clipping there loses nothing of the
     // frustum. Points of the guard frustum (|x|,|y| <= 2tz) with z < near lie within
@@ -718,7 +731,8 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     gl.BindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
     if (Status s = gl.check("reading the confirmation results"); !s) return s;
 
-    const std::string at = std::to_string(res) + " px" + (views.size() > 1 ? " per view, " + std::to_string(views.size()) + " views" : "");
+    const std::string at = std::to_string(res) + " px" + (views.size() > 1 ? " per view, " + std::to_string(views.size()) + " views" : "") +
+                           (closeUp_ ? " framed on the casters" : "");
     for (size_t q = 0; q < Q; ++q) {
         GroupPixels& gp = queries[q];
         gp.litSamples = counts[2 * q];

@@ -72,6 +72,8 @@ struct GpuConfirmOptions {
     // those over the examined pixels are classified and tested). false: every triangle of
     // the object is (tests compare the two: the same pieces are drawn).
     bool treeSelection = true;
+    // runCloseUp's pixels per side (at most `resolution`: the passes share its buffers).
+    int closeUpResolution = 512;
 };
 
 // A pixel where the group may be lit with a receiver behind: the light ray through the
@@ -119,6 +121,12 @@ public:
     // undecided. The OpenGL context is made on the first call that has work; no context
     // is an ErrorKind::Internal error.
     Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) override;
+    // The same proof again for the directional lights' bits still undecided, each view framed
+    // on the casters examined (every ray through them; depths over the whole window) instead
+    // of the window near the centre chunk: finer pixels where pixels are read, at more
+    // fragments (docs/performance.md, "Receivers from the whole space"). Passed pixels and
+    // decisions as run's; a bit it proves 0 says "framed on the casters".
+    Status runCloseUp(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats);
     void forgetMeshes(const std::unordered_set<const Mesh*>& meshes) override;
 
     // Every bit the last run examined, with the pixels that passed (for the raycast stage).
@@ -143,6 +151,7 @@ private:
     std::vector<GroupPixels> groups_;
     std::vector<ConfirmViewStats> viewStats_;
     uint64_t trianglesClassified_ = 0;
+    bool closeUp_ = false;  // within runCloseUp
     // Per mesh of the last window, its edge adjacency, kept while the window slides (it keeps
     // most of its meshes). Keyed by the mesh's address, so one stage serves one loaded space
     // (as the raycast stage's caches do).

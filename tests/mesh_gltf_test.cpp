@@ -248,6 +248,28 @@ TEST(MeshGltf, ExternalBufferRelativeToTheFile) {
     expectError(loadGltf((dir / "m.gltf").string()), "my buf.bin", ErrorKind::MissingResource);
 }
 
+// Issue 35: a buffer uri that is absolute or climbs out of the scene's directory was read
+// (/etc/passwd as a buffer). Refused at its JSON path, whether the file exists or not; a
+// uri that goes down and back up inside the directory is fine.
+TEST(MeshGltf, BufferFilesOutsideTheScenesDirectoryAreRefused) {
+    GltfBuilder b = threePrimitives();
+    const fs::path dir = freshTestDir();
+    const std::string bytes(b.bin.begin(), b.bin.end());
+    writeText(dir / "outside.bin", bytes);
+    writeText(dir / "scene" / "data" / "in.bin", bytes);
+    for (const std::string& uri : std::vector<std::string>{"../outside.bin", "data/../../outside.bin", (dir / "outside.bin").string(), "%2E%2E/outside.bin"}) {
+        SCOPED_TRACE(uri);
+        b.doc["buffers"] = {{{"byteLength", b.bin.size()}, {"uri", uri}}};
+        writeText(dir / "scene" / "m.gltf", b.doc.dump());
+        expectError(loadGltf((dir / "scene" / "m.gltf").string()), "buffers[0].uri: '" + uri + "' lies outside the scene's directory");
+    }
+    b.doc["buffers"] = {{{"byteLength", b.bin.size()}, {"uri", "data/../data/in.bin"}}};
+    writeText(dir / "scene" / "m.gltf", b.doc.dump());
+    auto m = loadGltf((dir / "scene" / "m.gltf").string());
+    ASSERT_TRUE(m) << m.error().what();
+    expectThreePrimitives(*m);
+}
+
 TEST(MeshGltf, MaterialsGiveAlphaTestAndDoubleSided) {
     GltfBuilder b;
     const size_t p = b.addPositions(kTriangle);
