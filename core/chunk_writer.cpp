@@ -348,6 +348,11 @@ Expected<std::string> rewriteChunkShadows(const std::string& xml, const std::str
     return out;
 }
 
+Status checkXmlStructure(const std::string& xml, const std::string& file) {
+    Expected<std::vector<Node>> scanned = scanXml(xml, file);
+    return scanned ? Status::ok() : Status(scanned.error());
+}
+
 std::string tempPathFor(const std::string& path) {
     size_t slash = path.rfind('/');
     size_t nameAt = slash == std::string::npos ? 0 : slash + 1;

@@ -39,6 +39,12 @@ struct ShadowWrite {
 Expected<std::string> rewriteChunkShadows(const std::string& xml, const std::string& file,
                                           const std::vector<ShadowWrite>& objects);
 
+// BadInput (file and line) unless `xml` is one well-formed element with nothing but
+// comments, processing instructions and a DOCTYPE around it: a second root element or an
+// end tag without its start tag is refused, as the chunk writer refuses them (every XML
+// file the tool reads is checked so, not only chunk files).
+Status checkXmlStructure(const std::string& xml, const std::string& file);
+
 // Writes `contents` to `path` atomically: a temporary file in the same directory
 // (named tempPathFor(path)), fsync, rename over `path`, fsync of the directory. On any
 // failure the temporary is removed and `path` is untouched (ErrorKind::Io).

@@ -11,12 +11,15 @@
 #include <csetjmp>
 #include <filesystem>
 #include <limits>
+#include <map>
 #include <set>
+#include <string_view>
 
 #include <glm/geometric.hpp>
 #include <png.h>
 #include <tinyxml2.h>
 
+#include "core/chunk_writer.h"
 #include "core/file_read.h"
 #include "core/format.h"
 #include "core/hash.h"
@@ -154,8 +157,33 @@ Error bad(const std::string& file, int line, const std::string& msg) {
     return makeError(ErrorKind::BadInput, file, line, msg);
 }
 
-// Parses `count` finite doubles separated by white space, each within [-maxAbs, maxAbs]
-// (core/limits.h); nothing else may follow.
+// Whether `t` is a decimal number as every reader of the tool takes one (the OBJ reader's
+// grammar): an optional sign, digits with an optional point (or a point and digits), an
+// optional exponent. No hex or hex-float (strtod's "0x10" would be 16), no inf or nan.
+bool isDecimalNumber(std::string_view t) {
+    size_t i = 0;
+    auto digits = [&] {
+        const size_t from = i;
+        while (i < t.size() && t[i] >= '0' && t[i] <= '9') ++i;
+        return i - from;
+    };
+    if (i < t.size() && (t[i] == '+' || t[i] == '-')) ++i;
+    size_t mantissa = digits();
+    if (i < t.size() && t[i] == '.') {
+        ++i;
+        mantissa += digits();
+    }
+    if (mantissa == 0) return false;
+    if (i < t.size() && (t[i] == 'e' || t[i] == 'E')) {
+        ++i;
+        if (i < t.size() && (t[i] == '+' || t[i] == '-')) ++i;
+        if (digits() == 0) return false;
+    }
+    return i == t.size();
+}
+
+// Parses `count` finite decimal numbers separated by white space, each within [-maxAbs,
+// maxAbs] (core/limits.h); nothing else may follow.
 Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, double* out, int count,
                     double maxAbs = std::numeric_limits<double>::max()) {
     std::string text = trim(e->GetText());
@@ -163,6 +191,12 @@ Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, doub
     for (int k = 0; k < count; ++k) {
         char* end = nullptr;
         while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r') ++p;
+        const char* tokenEnd = p;
+        while (*tokenEnd && *tokenEnd != ' ' && *tokenEnd != '\t' && *tokenEnd != '\n' && *tokenEnd != '\r') ++tokenEnd;
+        if (tokenEnd != p && !isDecimalNumber(std::string_view(p, size_t(tokenEnd - p))))
+            return bad(file, e->GetLineNum(),
+                       "<" + std::string(e->Name()) + "> value '" + std::string(p, size_t(tokenEnd - p)) +
+                           "' is not a decimal number (digits, an optional point and exponent: docs/format.md) in '" + text + "'");
         errno = 0;
         out[k] = std::strtod(p, &end);
         if (end == p)
@@ -184,6 +218,23 @@ Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, doub
     if (*p != '\0')
         return bad(file, e->GetLineNum(), "<" + std::string(e->Name()) + "> has trailing text in '" + text + "'");
     return Status::ok();
+}
+
+// The message for the first child element of `parent` that repeats an earlier one (a
+// name not in `repeatable`), and its line; nothing when none does. Which of two values
+// would win is not for the tool to guess (tinyxml2 lookups take the first, loops the last).
+std::optional<std::pair<int, std::string>> repeatedChild(const tinyxml2::XMLElement* parent,
+                                                         std::initializer_list<const char*> repeatable = {}) {
+    std::map<std::string, int> firstLine;
+    for (const tinyxml2::XMLElement* c = parent->FirstChildElement(); c; c = c->NextSiblingElement()) {
+        const std::string n = c->Name();
+        if (std::any_of(repeatable.begin(), repeatable.end(), [&](const char* r) { return n == r; })) continue;
+        if (auto [it, added] = firstLine.emplace(n, c->GetLineNum()); !added)
+            return std::pair<int, std::string>{c->GetLineNum(), "<" + n + "> given again in <" + std::string(parent->Name()) +
+                                                                     "> (first at line " + std::to_string(it->second) +
+                                                                     "): give each value once"};
+    }
+    return std::nullopt;
 }
 
 Status parseVec3(const std::string& file, const tinyxml2::XMLElement* e, glm::dvec3& v,
@@ -221,7 +272,8 @@ Status loadXml(const std::string& path, tinyxml2::XMLDocument& doc, const std::s
     tinyxml2::XMLError rc = doc.Parse(text->data(), text->size());
     if (rc != tinyxml2::XML_SUCCESS) return bad(path, doc.ErrorLineNum(), xmlParseProblem(doc));
     if (!doc.RootElement()) return bad(path, 1, "no root element");
-    return Status::ok();
+    // tinyxml2 reads a second root element, or an end tag after the root, without a word.
+    return checkXmlStructure(*text, path);
 }
 
 Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* le) {
@@ -231,6 +283,7 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
     // The element each value came from, for messages that point at the line to fix.
     const tinyxml2::XMLElement *directionElement = nullptr, *rangeElement = nullptr, *coneElement = nullptr;
     std::vector<std::pair<const tinyxml2::XMLElement*, double*>> distances;  // bias, slopeBias, filterRadius, normalBias
+    if (auto again = repeatedChild(le)) return bad(file, again->first, again->second);
     for (const tinyxml2::XMLElement* e = le->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
         Status s;
@@ -296,6 +349,7 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
     tinyxml2::XMLDocument doc;
     if (Status s = loadXml(file, doc, "space.xml", ErrorKind::BadInput); !s) return s.error();
     std::string resourceRoot;
+    if (auto again = repeatedChild(doc.RootElement(), {"light"})) return bad(file, again->first, again->second);
     for (const tinyxml2::XMLElement* e = doc.RootElement()->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
         Status s;
@@ -381,6 +435,7 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
             diagnostics.push_back({path, line, why + "; " + n + " skipped (its <shadow> is left as it was)"});
         };
         bool seenTransform = false;
+        if (auto again = repeatedChild(e)) skip(again->first, again->second);
         for (const tinyxml2::XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
             std::string cn = c->Name();
             if (cn == "resource") o.resource = trim(c->GetText());
@@ -389,6 +444,7 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
                 if (Status s = parseBool(path, c, o.castsShadow); !s) skip(c->GetLineNum(), s.error().message);
             } else if (cn == "transform" && o.kind == ChunkObject::Kind::Model) {
                 seenTransform = true;
+                if (auto again = repeatedChild(c)) skip(again->first, again->second);
                 const char* rowNames[4] = {"row0", "row1", "row2", "row3"};
                 for (int r = 0; r < 4; ++r) {
                     const tinyxml2::XMLElement* re = c->FirstChildElement(rowNames[r]);
@@ -429,6 +485,7 @@ Expected<Mesh> loadModelResource(const std::string& path) {
     tinyxml2::XMLDocument doc;
     if (Status s = loadXml(path, doc, "model resource"); !s) return s.error();
     const tinyxml2::XMLElement* root = doc.RootElement();
+    if (auto again = repeatedChild(root, {"primitiveGroup"})) return bad(path, again->first, again->second);
     const tinyxml2::XMLElement* visual = root->FirstChildElement("visual");
     if (!visual || trim(visual->GetText()).empty()) return bad(path, root->GetLineNum(), "<model> has no <visual>");
     std::string meshPath = (fs::path(path).parent_path() / trim(visual->GetText())).string();
@@ -492,6 +549,7 @@ Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkS
     tinyxml2::XMLDocument doc;
     if (Status s = loadXml(path, doc, "terrain resource"); !s) return s.error();
     const tinyxml2::XMLElement* root = doc.RootElement();
+    if (auto again = repeatedChild(root)) return bad(path, again->first, again->second);
     const tinyxml2::XMLElement* he = root->FirstChildElement("heights");
     const tinyxml2::XMLElement* mn = root->FirstChildElement("minHeight");
     const tinyxml2::XMLElement* mx = root->FirstChildElement("maxHeight");

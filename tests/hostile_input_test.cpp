@@ -99,6 +99,36 @@ TEST(HostileInput, EveryCaseIsReportedWithFileAndLineNeverACrashOrAHang) {
              fs::create_symlink(s / "loop-a", s / "loop-b");
          },
          "--res loop-a", 3, "Too many levels of symbolic links"},
+        // Issue 35: accepted silently before. Hex numbers (strtod's "0x10" is 16 m).
+        {"hex filter radius", [](const fs::path& s) { replaceIn(s / "space.xml", "<filterRadius> 0 ", "<filterRadius> 0x10 "); }, "",
+         3, "space.xml:11: <filterRadius> value '0x10' is not a decimal number"},
+        {"hex float in a transform",
+         [](const fs::path& s) { replaceIn(s / "00000000o.chunk", firstRow(s / "00000000o.chunk", "row3"), "<row3> 0x1.8p1 0 0 </row3>"); },
+         "", 1, "<row3> value '0x1.8p1' is not a decimal number"},
+        {"hex terrain height", [](const fs::path& s) { replaceIn(s / "terrain/00000000.terrain", "<maxHeight> 20 ", "<maxHeight> 0x14 "); },
+         "", 1, "00000000.terrain:4: <maxHeight> value '0x14' is not a decimal number"},
+        // Duplicates: the last won for <direction>, <chunkSize>, <transform>, <resource>; the
+        // first for <row3> and a terrain's <maxHeight>.
+        {"a light's direction twice",
+         [](const fs::path& s) { replaceIn(s / "space.xml", "<direction> 0.3 -1 0.2 </direction>", "<direction> 0.3 -1 0.2 </direction><direction> 0 -1 0 </direction>"); },
+         "", 3, "space.xml:8: <direction> given again in <light> (first at line 8)"},
+        {"chunk size twice", [](const fs::path& s) { replaceIn(s / "space.xml", "<chunkSize> 100 </chunkSize>", "<chunkSize> 100 </chunkSize>\n  <chunkSize> 50 </chunkSize>"); },
+         "", 3, "space.xml:3: <chunkSize> given again in <space> (first at line 2)"},
+        {"a model's resource twice",
+         [](const fs::path& s) { replaceIn(s / "00000000o.chunk", "<uuid>", "<resource> models/rock_b.obj </resource>\n    <uuid>"); },
+         "", 1, "<resource> given again in <model>"},
+        {"row3 twice",
+         [](const fs::path& s) { replaceIn(s / "00000000o.chunk", "</row3>", "</row3>\n      <row3> 5 0 5 </row3>"); },
+         "", 1, "<row3> given again in <transform>"},
+        {"a terrain's maxHeight twice",
+         [](const fs::path& s) { replaceIn(s / "terrain/00000000.terrain", "<maxHeight> 20 </maxHeight>", "<maxHeight> 20 </maxHeight><maxHeight> 40 </maxHeight>"); },
+         "", 1, "<maxHeight> given again in <terrain>"},
+        // A second root element, a stray end tag (chunk files refused both already).
+        {"space.xml with a second root", [](const fs::path& s) { writeText(s / "space.xml", readText(s / "space.xml") + "<space/>\n"); },
+         "", 3, "second root element <space>"},
+        {"a terrain with a stray end tag",
+         [](const fs::path& s) { writeText(s / "terrain/00000000.terrain", readText(s / "terrain/00000000.terrain") + "</terrain>\n"); },
+         "", 1, "end tag </terrain> without a start tag"},
     };
     for (const HostileCase& c : cases) {
         SCOPED_TRACE(c.name);
