@@ -182,7 +182,7 @@ TEST(SpaceReader, BadInputNamesFileAndLine) {
     const BadSpaceCase cases[] = {
         {"unknown type", spaceWithLight("    <type> area </type>"), 3, "unknown light type 'area'"},
         {"nan direction", spaceWithLight("    <type> directional </type>\n    <direction> nan -1 0 </direction>"), 4,
-         "non-finite"},
+         "value 'nan' is not a decimal number"},
         {"zero direction", spaceWithLight("    <type> directional </type>\n    <direction> 0 0 0 </direction>"), 4,
          "<direction> '0 0 0' has no length"},
         {"direction beyond a double", spaceWithLight("    <type> directional </type>\n    <direction> 1e308 -1e309 0 </direction>"), 4,
@@ -193,7 +193,7 @@ TEST(SpaceReader, BadInputNamesFileAndLine) {
          spaceWithLight("    <type> spot </type><position>0 0 0</position><direction>0 -1 0</direction>\n"
                         "    <range>5</range><coneAngle>120</coneAngle>"),
          4, "<coneAngle> is 120; the half-angle must be more than 0 and at most 90 degrees"},
-        {"bad number", "<space>\n<chunkSize> 1O0 </chunkSize>\n</space>", 2, "trailing text"},
+        {"bad number", "<space>\n<chunkSize> 1O0 </chunkSize>\n</space>", 2, "value '1O0' is not a decimal number"},
         {"negative chunk", "<space>\n<chunkSize> -5 </chunkSize>\n</space>", 2, "outside the accepted range [1, 100000]"},
         {"malformed", "<space>\n<chunkSize> 100 </chunkSize>\n<light>\n</space>", 3,
          "not well-formed XML: the element <light> that starts here is closed by an end tag of another name"},
@@ -302,7 +302,7 @@ TEST(ChunkReader, BadObjectsAreSkippedWithLine) {
     for (const ChunkObject& o : cf->objects) EXPECT_TRUE(o.skipped);
     ASSERT_EQ(diags.size(), 4u);
     EXPECT_EQ(diags[0].line, 4);
-    EXPECT_NE(diags[0].message.find("non-finite"), std::string::npos) << diags[0].what();
+    EXPECT_NE(diags[0].message.find("value 'inf' is not a decimal number"), std::string::npos) << diags[0].what();
     EXPECT_NE(diags[1].message.find("singular"), std::string::npos) << diags[1].what();
     EXPECT_EQ(diags[2].line, 10);
     EXPECT_NE(diags[2].message.find("no <resource>"), std::string::npos);
