@@ -7,6 +7,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/light_reach.h"
+#include "core/rounding.h"
 
 namespace shadowcull::geometry {
 
@@ -27,6 +28,14 @@ void ShadowQuery::addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm:
         // p_j: normal n = axis x (p_j - L), every point on its non-negative side. (None when
         // L is inside the points' shadow along the axis.) Every cone point has
         // n . (x - L) = l n . (p - L) >= 0.
+        // Which side of a plane each point lies on is decided beyond rounding (sideOf); a point
+        // within rounding of the plane may lie a hair on its negative side, and the cone
+        // through it leaves the plane by l times that: the half-space's relative allowance
+        // takes it, over |x - L| >= l * (the points' distance from L).
+        Aabb box;
+        for (int i = 0; i < pointCount_; ++i) box.extend(pts_[size_t(i)]);
+        const double reach = distanceToBox(light_, box) * (1 - 1e-9);
+        if (!(reach > 0)) return;  // the light among the points: no wedge bounds them
         glm::dvec3 found[2];
         int nFound = 0;
         for (int j = 0; j < pointCount_ && nFound < 2; ++j) {
@@ -39,16 +48,24 @@ void ShadowQuery::addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm:
             const double len = glm::length(n);
             const double scale = glm::length(axis) * glm::length(pj) + len;
             if (!(len > 1e-9 * scale)) continue;
+            // v = fl(n . fl(p_i - L)) against the exact n . (p_i - L) for this (double) n: the
+            // difference rounds once per component (gamma(1) |p_i - L|), the three-term dot
+            // by gamma(3) sum |n_k||q_k| (core/rounding.h): |error| <= gamma(4) sum |n_k||q_k|,
+            // gamma(5) for the bound's own rounding.
             int sign = 0;
+            double uncertain = 0;  // the largest |exact v| a point within rounding of the plane may have
             for (int i = 0; i < pointCount_ && sign != 2; ++i) {
-                const double v = glm::dot(n, pts_[size_t(i)] - light_);
-                const int si = v > 0 ? 1 : v < 0 ? -1 : 0;
+                const glm::dvec3 q = pts_[size_t(i)] - light_;
+                const double v = glm::dot(n, q);
+                const double err = gamma(5) * glm::dot(glm::abs(n), glm::abs(q));
+                const int si = v > err ? 1 : v < -err ? -1 : 0;
                 if (si != 0) sign = sign == 0 || sign == si ? si : 2;
+                else uncertain = std::max(uncertain, std::abs(v) + err);
             }
-            if (sign == 2) continue;  // points on both sides: not a bounding plane
+            if (sign == 2 || sign == 0) continue;  // points on both sides, or no side certain: not a bounding plane
             if (sign < 0) n = -n;
             found[nFound++] = n;
-            add(to, count, HalfSpace{n, light_, k0 * len, 1e-12 * scale, margin_ * len});
+            add(to, count, HalfSpace{n, light_, k0 * len, 1e-12 * scale + uncertain * (1 + 1e-9) / reach, margin_ * len});
             if (count + 2 > int(to.size())) return;
         }
         return;
