@@ -188,26 +188,31 @@ struct ObjectSpec {
 
 class SceneGenerator {
 public:
-    explicit SceneGenerator(uint64_t seed) : rng_(seed) {}
+    // `wide` (SHADOWCULL_REFERENCE_DRAWS=wide): SplitMix64 and the property run's wider
+    // tilts and sizes. An open lead, not yet analysed: with it, seed 34's scenes 969 and
+    // 1084 give a witness (checked exactly) for a bit the geometry stage culled ("no
+    // receiver in the shadow volume"), the receiver one-sided, mirrored and within 2e-12 of
+    // grazing. The default draws (CI's) find none.
+    SceneGenerator(uint64_t seed, bool wide) : rng_(seed), split_(seed), wide_(wide) {}
 
-    double u(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng_); }
-    int below(int n) { return int(rng_() % uint64_t(n)); }
+    double u(double lo, double hi) { return wide_ ? split_.uniform(lo, hi) : std::uniform_real_distribution<double>(lo, hi)(rng_); }
+    int below(int n) { return wide_ ? split_.below(n) : int(rng_() % uint64_t(n)); }
     bool chance(double p) { return u(0, 1) < p; }
 
     // Within k x 1e-12 rad of zero (k = 0..5, either sign), or a few larger angles.
     double tilt() {
         switch (below(6)) {
             case 0: case 1: return 0.0;
-            case 2: return double(below(6) - 2) * 1e-12;
-            case 3: return (chance(0.5) ? 1 : -1) * 1e-9;
+            case 2: return double(wide_ ? below(11) - 5 : below(6) - 2) * 1e-12;
+            case 3: return (chance(0.5) ? 1 : -1) * (wide_ ? u(1e-12, 1e-9) : 1e-9);
             case 4: return u(-1e-6, 1e-6);
-            default: return u(-0.5, 0.5);
+            default: return wide_ ? u(-0.7, 0.7) : u(-0.5, 0.5);
         }
     }
     double size() {
         switch (below(8)) {
             case 0: return 1e-6;
-            case 1: return 1e4;
+            case 1: return wide_ ? u(1e3, 1e4) : 1e4;
             case 2: return u(1e-3, 1e-2);
             default: return u(0.2, 5.0);
         }
@@ -407,6 +412,8 @@ public:
 
 private:
     std::mt19937_64 rng_;
+    DeterministicRng split_;
+    bool wide_ = false;
     std::vector<ObjectSpec> objects_;
 };
 
@@ -415,7 +422,8 @@ private:
 TEST(ExactReference, RandomNearDegenerateScenesHaveNoFalseCull) {
     const size_t sceneCount = envCount("SHADOWCULL_REFERENCE_SCENES", 2500);
     const uint64_t seed = envCount("SHADOWCULL_REFERENCE_SEED", 34);
-    SceneGenerator gen(seed);
+    const char* draws = std::getenv("SHADOWCULL_REFERENCE_DRAWS");
+    SceneGenerator gen(seed, draws && std::string(draws) == "wide");
     Tally tally;
     size_t edgeOn = 0, needles = 0, consistencyChecked = 0, undecided = 0;
     double bakeSeconds = 0, refSeconds = 0;
