@@ -502,7 +502,14 @@ template <class Kn>
 bool shadedWhole(const std::vector<typename Kn::Point_3>& poly, const ShadeTest<Kn>& t) {
     thread_local std::vector<Triangle> occluders;  // scratch: runs per reached part
     occluders.clear();
-    t.source->find(boxOf(poly), occluders);
+    {
+        // The source places triangles and walks trees in double, as every other stage
+        // does: in round-to-nearest, not in the interval code's upward rounding (issue 34).
+        // Placed upward, the caster's own triangle came out an ulp nearer the light and
+        // "shaded" the caster: a false cull.
+        CGAL::Protect_FPU_rounding<true> nearest(CGAL_FE_TONEAREST);
+        t.source->find(boxOf(poly), occluders);
+    }
     for (const Triangle& o : occluders)
         if (shadesWhole<Kn>(o, poly, t)) {
             t.source->shadedSome.store(true, std::memory_order_relaxed);

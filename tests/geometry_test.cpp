@@ -9,6 +9,7 @@
 // Exact rationals for the bias test (header-only); GCC warns inside them at -O2.
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#include <CGAL/FPU.h>
 #include <boost/multiprecision/cpp_int.hpp>
 #pragma GCC diagnostic pop
 #include <glm/geometric.hpp>
@@ -50,6 +51,29 @@ TEST(ExactFrustum, ReceiverBelowIsReachedAndAboveIsNot) {
     // Bias: 1 m below is reached with a bias of 0.999, not with 1.0 (strictly behind).
     EXPECT_TRUE(f.reaches(below, 0.999));
     EXPECT_FALSE(f.reaches(below, 1.0));
+}
+
+// The occluders' source places triangles in double as every stage does, so it must run in
+// round-to-nearest: called inside the interval code's upward rounding, the geometry stage
+// placed the caster's own triangle an ulp nearer the light, where it "shaded" the caster
+// (a false cull the exact reference found, issue 34). Fails when find() runs upward.
+TEST(ExactFrustum, OccluderSourceRunsInRoundToNearest) {
+    const Triangle caster = {glm::dvec3(0, 1, 0), glm::dvec3(0, 1, 1), glm::dvec3(1, 1, 0)};
+    const ExactFrustum f(caster, kDown, 0.0);
+    int calls = 0, nearest = 0;
+    const geometry::OccluderSource source([&](const std::array<glm::dvec3, 2>&, std::vector<Triangle>&) {
+        ++calls;
+        nearest += CGAL::FPU_get_cw() == CGAL_FE_TONEAREST;  // the mode CGAL's protection sets
+    });
+    // A receiver wholly inside the shadow (the interval path decides it) and one across its
+    // edge (the exact path does).
+    const Triangle inside = {glm::dvec3(0.1, 0, 0.1), glm::dvec3(0.1, 0, 0.3), glm::dvec3(0.3, 0, 0.1)};
+    const Triangle across = {glm::dvec3(-5, 0, -5), glm::dvec3(-5, 0, 5), glm::dvec3(5, 0, -5)};
+    EXPECT_TRUE(f.reaches(inside, 0.5, nullptr, nullptr, &source));
+    EXPECT_TRUE(f.reaches(across, 0.0, nullptr, nullptr, &source));
+    EXPECT_EQ(CGAL::FPU_get_cw(), CGAL_FE_TONEAREST);
+    ASSERT_GT(calls, 0);
+    EXPECT_EQ(nearest, calls);
 }
 
 TEST(ExactFrustum, CoplanarAndTouchingReceiversAreNotStrictlyBehind) {

@@ -188,12 +188,11 @@ struct ObjectSpec {
 
 class SceneGenerator {
 public:
-    // `wide` (SHADOWCULL_REFERENCE_DRAWS=wide): SplitMix64 and the property run's wider
-    // tilts and sizes. An open lead, not yet analysed: with it, seed 34's scenes 969 and
-    // 1084 give a witness (checked exactly) for a bit the geometry stage culled ("no
-    // receiver in the shadow volume", also with GeometryOptions::exhaustive): the receiver a
-    // one-sided, mirrored triangle of 2-4 micrometres, 0.7 m behind the caster, strictly
-    // inside its frustum, no occluder on the way. The default draws (CI's) find none.
+    // `wide` (the default; SHADOWCULL_REFERENCE_DRAWS=narrow for the first version's
+    // draws): SplitMix64 and the property run's wider tilts and sizes. They found a false
+    // cull the narrow draws did not (seed 34, scenes 969 and 1084): the geometry stage's
+    // occluders were placed in the interval code's upward rounding, and the caster's own
+    // triangle, an ulp nearer the light, "shaded" it.
     SceneGenerator(uint64_t seed, bool wide) : rng_(seed), split_(seed), wide_(wide) {}
 
     double u(double lo, double hi) { return wide_ ? split_.uniform(lo, hi) : std::uniform_real_distribution<double>(lo, hi)(rng_); }
@@ -424,7 +423,7 @@ TEST(ExactReference, RandomNearDegenerateScenesHaveNoFalseCull) {
     const size_t sceneCount = envCount("SHADOWCULL_REFERENCE_SCENES", 2500);
     const uint64_t seed = envCount("SHADOWCULL_REFERENCE_SEED", 34);
     const char* draws = std::getenv("SHADOWCULL_REFERENCE_DRAWS");
-    SceneGenerator gen(seed, draws && std::string(draws) == "wide");
+    SceneGenerator gen(seed, !(draws && std::string(draws) == "narrow"));
     Tally tally;
     size_t edgeOn = 0, needles = 0, consistencyChecked = 0, undecided = 0;
     double bakeSeconds = 0, refSeconds = 0;
