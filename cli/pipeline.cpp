@@ -600,7 +600,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     space.settings = source.settings();
     TerrainMeshes terrainMeshes;
     const WindowPlanner planner(source.settings(), source.chunks(), wholeSpaceWindows(opt));
-    WindowSequence windows(source, targets, &planner);
+    WindowSequence windows(source, targets, planner);
     auto release = [&](size_t k) {
         const std::vector<std::shared_ptr<const Mesh>> gone = windows.leave(k, space, terrainMeshes);
         if (gone.empty()) return;
@@ -658,9 +658,10 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         const ChunkEntry& entry = source.chunks().at(targets[k]);
         const std::string target = targetOf(entry.path);
         const std::string chunkName = chunkFileName(targets[k]);
+        const WindowPlan plan = planner.plan(targets[k]);  // the chunks its bake reads
         uint64_t inputHash = 0;
         if (resume) {
-            inputHash = windowInputHash(source, targets[k], planner.plan(targets[k]).chunks, opt);
+            inputHash = windowInputHash(source, targets[k], plan.chunks, opt);
             Expected<std::string> current = readRegularFile(target, "chunk file", ErrorKind::Io);
             // With --results, its part of the results as recorded; unreadable (an edited
             // state): bake it again.
@@ -685,7 +686,6 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
         const ChunkFile& cf = space.chunks.at(targets[k]);
         ChunkVerdicts cv;
         {
-            const WindowPlan plan = planner.plan(targets[k]);
             if (planner.wholeSpace()) result.reach.add(plan);
             if (planner.wholeSpace() && opt.keepVerdicts) result.plans[targets[k]] = plan;
             const BakeWindow window = buildWindow(space, targets[k], plan.chunks, terrainMeshes);

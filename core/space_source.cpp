@@ -431,22 +431,13 @@ std::vector<std::shared_ptr<const Mesh>> SpaceSource::unload(ChunkCoord c, Space
     return gone;
 }
 
-WindowSequence::WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres, const WindowPlanner* planner)
+WindowSequence::WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres, const WindowPlanner& planner)
     : source_(source), planner_(planner), centres_(std::move(centres)) {
     for (size_t k = 0; k < centres_.size(); ++k)
         for (ChunkCoord c : window(k)) lastUse_[c] = k;
 }
 
-std::vector<ChunkCoord> WindowSequence::window(size_t k) const {
-    if (planner_) return planner_->plan(centres_[k]).chunks;
-    const Neighbours& n = source_.settings().neighbours;
-    const ChunkCoord c = centres_[k];
-    std::vector<ChunkCoord> out;
-    for (int dx = -n.left; dx <= n.right; ++dx)
-        for (int dz = -n.bottom; dz <= n.top; ++dz)
-            if (source_.chunks().count({c.x + dx, c.z + dz})) out.push_back({c.x + dx, c.z + dz});
-    return out;
-}
+std::vector<ChunkCoord> WindowSequence::window(size_t k) const { return planner_.plan(centres_[k]).chunks; }
 
 Status WindowSequence::enter(size_t k, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
     for (ChunkCoord c : window(k))

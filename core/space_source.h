@@ -145,9 +145,9 @@ private:
 class WindowSequence {
 public:
     // `centres`: the chunks baked, in the order they will be; each window holds the chunks
-    // `planner` plans for its centre (core/window_plan.h), or without one the centre and
-    // its neighbours that the space has. The planner must outlive the sequence.
-    WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres, const WindowPlanner* planner = nullptr);
+    // `planner` plans for its centre (core/window_plan.h: what the shadows reach, or the
+    // `neighbours` rectangle). The planner must outlive the sequence.
+    WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres, const WindowPlanner& planner);
     // The chunks window k holds, in grid order (what buildWindow is given).
     std::vector<ChunkCoord> window(size_t k) const;
     // Loads what window k holds into `space` (SpaceSource::load).
@@ -160,7 +160,7 @@ public:
 
 private:
     SpaceSource& source_;
-    const WindowPlanner* planner_ = nullptr;
+    const WindowPlanner& planner_;
     std::vector<ChunkCoord> centres_;
     std::map<ChunkCoord, size_t> lastUse_;  // the last window holding each chunk
     size_t peak_ = 0;

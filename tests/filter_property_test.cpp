@@ -35,6 +35,7 @@
 
 #include "geometry/exact_frustum.h"
 #include "geometry/shadow_query.h"
+#include "tests/support/point_light_edge_case.h"
 
 using namespace shadowcull;
 using namespace shadowcull::geometry;
@@ -401,22 +402,18 @@ TEST(FilterProperty, NoPreFilterRejectsAReceiverTheExactKernelReaches) {
     EXPECT_GT(tallies[kCertainlyMisses].rejected, count / 20);
 }
 
-// Found by the run above (seed 3434, triple 1 of the first 100,000): a point light on the
-// line of the caster's edge ab (within rounding: the light was made as (a + b) / 2, then the
-// frame turned), in the plane of that edge and a receiver. Seen along z, the light lies on
-// the projected edge, so the caster's cone around it spans a half-plane or more; the
-// point-light wedge of ShadowQuery::addSlabs takes the plane through the light and the
-// edge as bounding on raw double signs and rejects a receiver that the exact frustum holds
-// (an exact program finds p on ab 5e-11 m from the light and q on the receiver at l = 2.2e14).
-// Fails until the wedge's side decision carries an error bound (a bug report, issue 34 B).
+// Found by the run above (seed 3434): a point light on the line of a caster's edge
+// (tests/support/point_light_edge_case.h). Seen along z, the light lies on the projected
+// edge, so the caster's cone around it spans a half-plane or more; ShadowQuery::addSlabs
+// took the plane through the light and the edge as bounding on raw double signs and
+// rejected a receiver that the exact frustum holds (an exact program finds p on the edge
+// 5e-11 m from the light and q on the receiver at l = 2.2e14). Failed before the wedge's
+// side decision carried an error bound (839e880).
 TEST(FilterProperty, PointLightOnACasterEdgeLineIsNotMissed) {
-    const Triangle caster = {glm::dvec3(0x1.ef88c37d868ccp-2, -0x1.fa5c85a850db6p-1, -0x1.9f5d09fea6ed2p+0),
-                             glm::dvec3(-0x1.3793752073c22p+11, 0x1.8a77d4aae1602p+12, -0x1.9f5d09fea6ed2p+0),
-                             glm::dvec3(0x1.96a73fefaa6cbp+9, 0x1.a51209385ae59p+12, -0x1.a0dd6c3a07304p+0)};
-    const Triangle receiver = {glm::dvec3(0x1.2e4b0b9876164p-1, -0x1.9255bb8c038ep+0, -0x1.9f5d09fea6ed2p+0),
-                               glm::dvec3(-0x1.1de1eed91c6bap+0, -0x1.77a86466444cp+0, -0x1.9f5d09fea6ed2p+0),
-                               glm::dvec3(-0x1.1d826c65d279ap+1, -0x1.13d8997f9e78ap+1, -0x1.9f5d09fea6ed2p+0)};
-    const LightGeometry lamp{false, {0, -1, 0}, glm::dvec3(-0x1.3783f8da57d5fp+10, 0x1.8a6801c6b41dap+11, -0x1.9f5d09fea6ed2p+0)};
+    using namespace shadowcull::testing::point_light_edge_case;
+    const Triangle& caster = kCaster;
+    const Triangle& receiver = kReceiver;
+    const LightGeometry lamp{false, {0, -1, 0}, kLamp};
     const ExactFrustum exact(caster, lamp, 0.0);
     ASSERT_FALSE(exact.degenerate());
     ASSERT_TRUE(exact.reachesExactly(receiver, 0.0));

@@ -32,6 +32,7 @@
 #include "tests/reference/exact_lp.h"
 #include "tests/reference/exact_reference.h"
 #include "tests/support/bake_lookup.h"
+#include "tests/support/point_light_edge_case.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 
@@ -488,17 +489,13 @@ TEST(ExactReference, RandomNearDegenerateScenesHaveNoFalseCull) {
 // rejection becomes a false cull.
 TEST(ExactReference, LampOnACasterEdgeLine) {
     using Tri3 = std::array<glm::dvec3, 3>;
-    const Tri3 caster = {glm::dvec3(0x1.ef88c37d868ccp-2, -0x1.fa5c85a850db6p-1, -0x1.9f5d09fea6ed2p+0),
-                         glm::dvec3(-0x1.3793752073c22p+11, 0x1.8a77d4aae1602p+12, -0x1.9f5d09fea6ed2p+0),
-                         glm::dvec3(0x1.96a73fefaa6cbp+9, 0x1.a51209385ae59p+12, -0x1.a0dd6c3a07304p+0)};
-    const Tri3 receiver = {glm::dvec3(0x1.2e4b0b9876164p-1, -0x1.9255bb8c038ep+0, -0x1.9f5d09fea6ed2p+0),
-                           glm::dvec3(-0x1.1de1eed91c6bap+0, -0x1.77a86466444cp+0, -0x1.9f5d09fea6ed2p+0),
-                           glm::dvec3(-0x1.1d826c65d279ap+1, -0x1.13d8997f9e78ap+1, -0x1.9f5d09fea6ed2p+0)};
+    const Tri3& caster = point_light_edge_case::kCaster;
+    const Tri3& receiver = point_light_edge_case::kReceiver;
     Space space;
     space.settings.chunkSize = 100.0;
     Light L;
     L.type = LightType::Point;
-    L.position = glm::dvec3(-0x1.3783f8da57d5fp+10, 0x1.8a6801c6b41dap+11, -0x1.9f5d09fea6ed2p+0);
+    L.position = point_light_edge_case::kLamp;
     L.range = 1e5;
     space.settings.lights.push_back(L);
     ChunkFile cf;
