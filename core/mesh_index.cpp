@@ -217,7 +217,7 @@ double placedCoordinateUpper(const RowTransform& t, int axis, double s, const gl
         extreme += std::max(lo[k] * c, hi[k] * c);
         magnitude += std::max(std::abs(lo[k]), std::abs(hi[k])) * std::abs(c);
     }
-    return extreme + 1e-12 * magnitude + 1e-300;
+    return extreme + kPlacementRounding * magnitude + 1e-300;
 }
 
 double placedDotUpper(const RowTransform& t, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi) {
@@ -237,7 +237,7 @@ double placedDotUpper(const RowTransform& t, const glm::dvec3& d, const glm::dve
         extreme += std::max(lo[k] * c, hi[k] * c);
         magnitude += std::max(std::abs(lo[k]), std::abs(hi[k])) * cAbs;
     }
-    return extreme + 1e-12 * magnitude + 1e-300;
+    return extreme + kPlacementRounding * magnitude + 1e-300;
 }
 
 std::pair<double, double> areaScaleBounds(const RowTransform& t) {

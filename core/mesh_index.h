@@ -8,8 +8,8 @@
 // can put an interior vertex a few ulps beyond a hull vertex. So the trees are not hulls:
 // a query is a branch and bound over the tree in mesh coordinates that evaluates the very
 // expression the loop evaluates (RowTransform::apply) at every vertex of every node whose
-// conservative bound (the node's box mapped in real arithmetic, widened by 1e-12 of its
-// magnitude for the rounding of both sides) can reach the best value so far. The extreme it
+// conservative bound (the node's box mapped in real arithmetic, widened by
+// kPlacementRounding of its magnitude for the rounding of both sides, core/rounding.h) can reach the best value so far. The extreme it
 // returns is therefore the loop's extreme, bit for bit. One exception: a zero extreme, where
 // -0 and +0 compare equal and the loop keeps the first it met; such queries say so and the
 // caller runs its loop (a box coordinate exactly at the window origin is rare).
@@ -134,14 +134,14 @@ std::optional<std::pair<glm::dvec3, glm::dvec3>> placedBox(const VertexTree& tre
                                                            const RowTransform& t);
 
 // The bound VertexTree::maximum needs for s * t.apply(p)[axis] (s = +1 or -1): the exact
-// extreme over the box of the affine function, plus 1e-12 of its magnitude (the rounding of
-// apply and of this bound, ~1e-15 each) and 1e-300 (underflow, flushed or gradual).
+// extreme over the box of the affine function, plus kPlacementRounding of its magnitude (the
+// rounding of apply and of this bound) and 1e-300 (underflow, flushed or gradual).
 double placedCoordinateUpper(const RowTransform& t, int axis, double s, const glm::dvec3& lo, const glm::dvec3& hi);
 
 // The bound VertexTree::maximum needs for dot(d, t.apply(p)) (the expression evaluated as
 // written: apply, then glm::dot): the exact maximum over the box of the affine function,
-// computed in double and widened by 1e-12 of the magnitude of every term (the rounding of
-// apply, the dot and this bound, each ~1e-15 of it) and by 1e-300 (underflow).
+// computed in double and widened by kPlacementRounding of the magnitude of every term (the
+// rounding of apply, the dot and this bound) and by 1e-300 (underflow).
 double placedDotUpper(const RowTransform& t, const glm::dvec3& d, const glm::dvec3& lo, const glm::dvec3& hi);
 
 template <class Upper, class Eval>

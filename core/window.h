@@ -20,6 +20,7 @@
 #include <glm/common.hpp>
 #include <glm/vec3.hpp>
 
+#include "core/rounding.h"
 #include "core/scene.h"
 
 namespace shadowcull {
@@ -62,9 +63,9 @@ inline std::array<glm::dvec3, 8> placedCorners(const Aabb& msBox, const RowTrans
 }
 
 // The box of the mesh-coordinate box `msBox` placed by `lsFromMesh`, from its centre and
-// half extent (|A| e): a third of the cost of mapping the eight corners. Widened by a
-// relative 1e-12 of the coordinates' magnitude, far above the rounding of either way, so
-// it holds every corner placed exactly and as placedCorners computes it (conservative).
+// half extent (|A| e): a third of the cost of mapping the eight corners. Widened by
+// kPlacementRounding (core/rounding.h) of the coordinates' magnitude, the rounding of either
+// way, so it holds every corner placed exactly and as placedCorners computes it (conservative).
 inline Aabb placedBounds(const Aabb& msBox, const RowTransform& lsFromMesh) {
     const glm::dvec3 c = 0.5 * (msBox.min + msBox.max), e = 0.5 * (msBox.max - msBox.min);
     glm::dvec3 centre = lsFromMesh.rows[3], half(0.0), magnitude = glm::abs(lsFromMesh.rows[3]);
@@ -74,7 +75,7 @@ inline Aabb placedBounds(const Aabb& msBox, const RowTransform& lsFromMesh) {
         half += e[int(k)] * a;
         magnitude += std::abs(c[int(k)]) * a;
     }
-    const glm::dvec3 pad = half + 1e-12 * (magnitude + half) + 1e-300;
+    const glm::dvec3 pad = half + kPlacementRounding * (magnitude + half) + 1e-300;
     return Aabb{centre - pad, centre + pad};
 }
 

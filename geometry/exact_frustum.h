@@ -26,6 +26,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "core/rounding.h"
 #include "core/window.h"
 
 namespace shadowcull::geometry {
@@ -76,9 +77,10 @@ public:
     // the answer may be false where reaches() without them is true. Exact.
     bool reaches(const Triangle& receiver, double beta, std::array<glm::dvec3, 2>* reachedPart = nullptr,
                  glm::dvec3* inside = nullptr, const OccluderSource* occluders = nullptr) const;
-    // The same answer without the interval fast path (every step in the exact kernel): the
-    // reference the tests compare the fast path with.
-    bool reachesExactly(const Triangle& receiver, double beta) const;
+    // The same answer without the interval fast path or the double pre-filter (every step
+    // in the exact kernel, occluders included): the reference the tests compare the fast
+    // path with.
+    bool reachesExactly(const Triangle& receiver, double beta, const OccluderSource* occluders = nullptr) const;
     // The terrain rule, exactly (issue 19): true when some point of `receiver` lies in the
     // frustum (as reaches()) and is not deeper than `tolerance` (metres) under the ground,
     // that is, lies in the vertical prism of one of the `ground` triangles (window-local,
@@ -99,7 +101,7 @@ private:
 
 // A double-only filter in front of ExactFrustum, cheap to build for every caster triangle
 // (no CGAL): certainlyMisses(r) is true only when the receiver cannot reach the frustum
-// for any bias >= 0, with every rounding covered by a wide error bound. It rejects a
+// for any bias >= 0, with every rounding covered by its derived bound (core/rounding.h). It rejects a
 // receiver that lies strictly outside one side or wholly in front of the caster's plane,
 // or whose plane lies in front of the caster along every ray of the caster's column (a
 // large terrain triangle above a buried caster: its vertices lie on both sides of every
@@ -126,13 +128,10 @@ public:
 
 private:
     struct Plane {
-        glm::dvec3 n{0.0}, o{0.0};  // inside: n . (x - o) + k > 0 (sides closed, near open)
-        double k = 0.0;
-        double scale = 0.0;         // |e1||e2| + |n| of the cross product n = e1 x e2, for the error bound
+        BoundedPlane f;             // inside: f(x) > 0 (sides closed, near open); offset: the dilation
         int onPlane[2] = {-1, -1};  // caster vertices that lie on this plane exactly
-        double kError = 0.0;        // bound on |k - the exact frustum's offset| (dilation)
     };
-    static Plane makePlane(const glm::dvec3& n, const glm::dvec3& o, double scale, double dilation, int v0, int v1);
+    static Plane makePlane(const Bounded3& n, const glm::dvec3& o, double dilation, int v0, int v1);
     // True when the exact frustum's function of `p` at x, less beta n.d for the near plane,
     // is certainly negative (beyond every rounding of its double evaluation).
     bool beyond(const Plane& p, const glm::dvec3& x, double beta) const;
@@ -141,19 +140,18 @@ private:
     Triangle caster_;
     LightGeometry light_;
     bool valid_ = false, shared_ = false;
-    double nearK_ = 0.0;       // directional: n . d of the caster's normal (away from the light)
-    double nearKError_ = 0.0;  // bound on |nearK_ - the exact n . d|
+    Bounded nearK_;  // directional: n . d of the caster's normal (away from the light), with its bound
     Plane planes_[4];  // three sides, then the near plane (the caster's own)
 };
 
 // The side half-space of a caster's frustum through edge e (vertices e and e + 1), in
-// double: normal `n` (not unit) towards the frustum's inside, through `o` (the edge's
-// first vertex, or a point light's position); `scale` sizes the rounding of n (|a||b| + |n|
-// of the cross product it comes from). Nothing when the side is not certain in double
-// (the third vertex on the plane within rounding: the caster edge-on).
+// double: normal `n` (not unit) towards the frustum's inside, with its rounding bound
+// (core/rounding.h), through `o` (the edge's first vertex, or a point light's position).
+// Nothing when the side is not certain in double (the third vertex on the plane within
+// rounding: the caster edge-on).
 struct SidePlane {
-    glm::dvec3 n{0.0}, o{0.0};
-    double scale = 0.0;
+    Bounded3 n;
+    glm::dvec3 o{0.0};
 };
 bool doubleSidePlane(const Triangle& caster, int e, const LightGeometry& light, SidePlane& out);
 
@@ -166,7 +164,7 @@ bool doubleSidePlane(const Triangle& caster, int e, const LightGeometry& light, 
 // `slack` (metres) widens every bound (points known only up to it). With `sharedOnPlane`
 // and beta 0, a point that is bitwise a receiver vertex has numerator exactly 0 and is let
 // through (the plane touches the column there, in the caster's own plane). Double only,
-// every rounding covered by a wide bound.
+// every rounding covered by its derived bound (core/rounding.h).
 bool receiverPlaneInFrontOf(const Triangle& receiver, const glm::dvec3* pts, int count, const LightGeometry& light,
                             double beta, double slack, bool sharedOnPlane);
 

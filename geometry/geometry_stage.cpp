@@ -373,28 +373,22 @@ namespace {
 
 // A lower bound of slopeBias tan(theta) = slopeBias |n* x d| / |n* . d| (n* the exact normal
 // of `tri`, d the light's direction: both exact for the double inputs), even once the caller
-// multiplies nothing more; 0 where nothing useful is certain. Derivation (u = 2^-53,
-// gamma(n) = n u / (1 - n u), core/rounding.h; computed magnitudes throughout; each gamma
-// one above its sum for the bound's own rounding):
-//   n = fl(e1 x e2), edges rounded once: |n - n*|_i <= gamma(5) (|e1_j||e2_k| + |e1_k||e2_j|),
-//     so |n - n*| <= gamma(5) sqrt(2) |e1||e2| (a needle's n is this far off however small);
-//   c = fl(n x d): |c - n* x d| <= sqrt(2) (gamma(2) |n| + gamma(5) |e1||e2|) |d|
-//     <= gamma(8) scale |d| (scale = |e1||e2| + |n|); |c| = fl-length (1 + theta), theta
-//     <= gamma(3): |n* x d| >= length - gamma(4) length - gamma(9) scale |d|;
-//   t = fl(n . d): |t - n* . d| <= gamma(3) sum |n_i||d_i| + gamma(5) |e1||e2| |d|_1
-//     <= gamma(5) scale |d|_1: |n* . d| <= |t| + gamma(6) scale |d|_1;
-//   the subtraction, addition and division round the quotient by at most gamma(3) upward;
-//   the factor 1 - gamma(6) (the double 1 - 6u) and the product with slopeBias (one more u)
-//   leave it below: (1 - 6u)(1 + u)^2 / (1 - 3u) < 1.
+// multiplies nothing more; 0 where nothing useful is certain. The cross and dot products
+// carry their rounding bounds (core/rounding.h): |n* x d| >= |c| - |c.error()|_1 and
+// |n* . d| <= |t| + t.error. Then (u = 2^-53, gamma(n) = n u / (1 - n u)): the length of c
+// rounds by gamma(3), so fl-length(c) (1 - gamma(4)) <= |c| once rounded; the error's sum
+// times 1 + gamma(3) is at least the exact sum; the subtraction rounds num up by at most
+// (1 + u), the denominator is rounded up by its factor 1 + gamma(2); the quotient and the
+// two products round by (1 + u) each: (1 + u)^4 (1 - 6u) < 1 leaves the result below.
 // A receiver within 1e-6 of edge-on (tan > 1e6) gets no slope term: nothing is lost that a
 // witness could show (the raycast stage asks cos(theta) > 1e-6 too).
 double slopeTermLowerBound(const Light& L, const Triangle& tri) {
-    const glm::dvec3 e1 = tri[1] - tri[0], e2 = tri[2] - tri[0];
-    const glm::dvec3 n = glm::cross(e1, e2), &d = L.direction, ad = glm::abs(d);
-    const double scale = glm::length(e1) * glm::length(e2) + glm::length(n);
-    const double length = glm::length(glm::cross(n, d));
-    const double num = length - (gamma(4) * length + gamma(9) * scale * glm::length(d));
-    const double den = std::abs(glm::dot(n, d)) + gamma(6) * scale * (ad.x + ad.y + ad.z);
+    const Bounded3 n = cross(difference(tri[1], tri[0]), difference(tri[2], tri[0]));
+    const Bounded3 c = cross(n, exactly(L.direction));
+    const Bounded t = dot(n, exactly(L.direction));
+    const glm::dvec3 ce = c.error();
+    const double num = glm::length(c.value()) * (1 - gamma(4)) - (ce.x + ce.y + ce.z) * (1 + gamma(3));
+    const double den = (std::abs(t.value) + t.error) * (1 + gamma(2));
     if (!(num > 0) || !(num < 1e6 * den)) return 0.0;
     return L.slopeBias * (num / den * (1 - gamma(6)));
 }

@@ -15,8 +15,18 @@ namespace {
 
 double norm1(const glm::dvec3& v) { return std::abs(v.x) + std::abs(v.y) + std::abs(v.z); }
 
-// Relative rounding allowance of every double evaluation below (a few ulps, widely).
-constexpr double kRound = 1e-13;
+// Relative rounding allowance of every double evaluation below (core/rounding.h): a
+// half-space's v = fl(n . fl(x - o) + k) is within gamma(5) (|n|_1 |x - o|_1 + |k|) of its
+// exact value (one difference, a three-term dot, one sum); a box corner's best value
+// likewise; inMesh's n'_i = n . r_i (gamma(3)), c = n . (r3 - o) + k (gamma(5)), the
+// evaluation of n' . y + c (gamma(4)) and the receivers' own mapped vertices (gamma(4) of
+// sum |y_i| |r_i| + |r3|) each stay within gamma(5) of the terms inMesh weighs them by;
+// gamma(8) for the bound's own rounding. The world's placement rounding (window-local
+// coordinates, the choice of an extreme point by rounded dots) is the stage's margin's.
+constexpr double kRound = gamma(8);
+
+// The largest component of a vector of rounding bounds: |(n - n*) . v| <= it times |v|_1.
+double maxOf(const glm::dvec3& e) { return std::max({e.x, e.y, e.z}); }
 
 }  // namespace
 
@@ -42,7 +52,7 @@ void ShadowQuery::addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm:
             const glm::dvec3 pj = pts_[size_t(j)] - light_;
             bool again = false;  // p_j on a plane already found (a box's corners pair up along its axes)
             for (int f = 0; f < nFound; ++f)
-                again |= std::abs(glm::dot(found[f], pj)) <= 1e-12 * glm::length(found[f]) * glm::length(pj);
+                again |= certainSign(dot(exactly(found[f]), difference(pts_[size_t(j)], light_))) == 0;
             if (again) continue;
             glm::dvec3 n = glm::cross(axis, pj);
             const double len = glm::length(n);
@@ -65,18 +75,21 @@ void ShadowQuery::addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm:
             if (sign == 2 || sign == 0) continue;  // points on both sides, or no side certain: not a bounding plane
             if (sign < 0) n = -n;
             found[nFound++] = n;
-            add(to, count, HalfSpace{n, light_, k0 * len, 1e-12 * scale + uncertain * (1 + 1e-9) / reach, margin_ * len});
+            // n is exact as used (a double vector); every point certainly on its side keeps
+            // the cone there, the rest move it by at most `uncertain` per unit of l.
+            add(to, count, HalfSpace{n, light_, k0 * len, uncertain * (1 + gamma(4)) / reach, margin_ * len});
             if (count + 2 > int(to.size())) return;
         }
         return;
     }
     // n = d x axis is across the light: every point p + s d of the column has n . x = n . p
-    // up to s (n . d), which is rounding only (|n . d| a few ulps of |n||d|; s |d| at most
-    // the window's size, covered by the margin of 1e-9 of its extent).
-    const glm::dvec3 n = glm::cross(direction_, axis);
+    // up to s (n . d), which is rounding only (|n . d| = |(n - n*) . d|, n* . d = 0; s |d|
+    // at most the window's size): rel covers it per unit of |x - o|_1.
+    const Bounded3 nb = cross(exactly(direction_), exactly(axis));
+    const glm::dvec3 n = nb.value();
     const double len = glm::length(n);
     if (!(len > 1e-9 * glm::length(direction_) * glm::length(axis))) return;  // axis along the light: no slab
-    const double rel = 1e-12 * (glm::length(direction_) * glm::length(axis) + len);
+    const double rel = maxOf(nb.error()) * (1 + gamma(2));
     for (const glm::dvec3& m : {n, -n}) {
         int lo = 0;
         for (int i = 1; i < pointCount_; ++i)
@@ -88,20 +101,24 @@ void ShadowQuery::addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm:
 ShadowQuery::ShadowQuery(const Triangle& t, const LightGeometry& light, double dilation, double margin) {
     // Moving a half-space outward by the dilation r: k = r |n| (rounded up, as the exact test does).
     auto grow = [&](const glm::dvec3& n) { return dilation > 0 ? dilation * glm::length(n) * (1 + 1e-9) : 0.0; };
-    const glm::dvec3 e1 = t[1] - t[0], e2 = t[2] - t[0];
-    glm::dvec3 n = glm::cross(e1, e2);
-    const glm::dvec3 toward = light.directional ? light.direction : t[0] - light.position;
-    const double facing = glm::dot(n, toward);
-    const double nScale = glm::length(e1) * glm::length(e2) + glm::length(n);
-    // As FrustumFilter: signs are trusted only far beyond their rounding (the cross product
-    // of rounded differences is within a few ulps of |e1||e2| of the exact one).
-    if (std::abs(facing) > 1e-12 * nScale * glm::length(toward) + 1e-300) {
+    // As FrustumFilter: a sign is trusted only when certain (core/rounding.h). A plane's
+    // double normal n is within n.error() of the exact one n*: a point with
+    // n* . (x - o) >= -r |n*| has n . (x - o) >= -(maxOf(n.error()) |x - o|_1 + r |n| +
+    // r |n.error()|_1): rel and (with the margin) abs.
+    auto plane = [&](Bounded3 nb, const glm::dvec3& o) {
+        const glm::dvec3 n = nb.value(), err = nb.error();
+        const double len = glm::length(n);
+        return HalfSpace{n, o, grow(n), maxOf(err) * (1 + gamma(2)), margin * len + dilation * (err.x + err.y + err.z) * 2};
+    };
+    Bounded3 n = crossOfDifferences(t[1] - t[0], t[2] - t[0]);
+    const int facing = certainSign(light.directional ? BoundedPlane(n, glm::dvec3(0.0), exactly(0.0)).at(light.direction)
+                                                     : BoundedPlane(n, light.position, exactly(0.0)).at(t[0]));
+    if (facing != 0) {
         if (facing < 0) n = -n;
-        add(hs_, count_, HalfSpace{n, t[0], grow(n), 1e-12 * nScale, margin * glm::length(n)});  // beyond the caster's plane
+        add(hs_, count_, plane(n, t[0]));  // beyond the caster's plane
         for (int e = 0; e < 3; ++e) {
             SidePlane side;
-            if (doubleSidePlane(t, e, light, side))  // uncertain: left out
-                add(hs_, count_, HalfSpace{side.n, side.o, grow(side.n), 1e-12 * side.scale, margin * glm::length(side.n)});
+            if (doubleSidePlane(t, e, light, side)) add(hs_, count_, plane(side.n, side.o));  // uncertain: left out
         }
     }
     if (!light.directional) {
@@ -124,7 +141,8 @@ ShadowQuery::ShadowQuery(const Triangle& t, const LightGeometry& light, double d
     int shallowest = 0;
     for (int i = 1; i < 3; ++i)
         if (glm::dot(w, t[size_t(i)]) < glm::dot(w, t[size_t(shallowest)])) shallowest = i;
-    add(hs_, count_, HalfSpace{w, t[size_t(shallowest)], dilation > 0 ? dilation * (1 + 1e-9) : 0.0, 1e-12, margin});
+    // (w . d > 0 by far; the shallowest vertex is chosen by rounded dots, which the margin holds.)
+    add(hs_, count_, HalfSpace{w, t[size_t(shallowest)], dilation > 0 ? dilation * (1 + 1e-9) : 0.0, kRound, margin});
     frustumCount_ = count_;
     directional_ = true;
     pts_ = {t[0], t[1], t[2]};
@@ -165,7 +183,7 @@ ShadowQuery ShadowQuery::ofCluster(const Aabb& b, const RowTransform& m, const L
     if (light.directional) {
         // Depth: not nearer the light than the box's nearest corner.
         const glm::dvec3 w = glm::normalize(light.direction);
-        add(q.hs_, q.count_, HalfSpace{w, extreme(w, true), k0, 1e-12, margin});
+        add(q.hs_, q.count_, HalfSpace{w, extreme(w, true), k0, kRound, margin});
     } else {
         // Every point L + l (x - L), l > 1, is at least as far from L as the box is.
         q.near_ = distanceToBox(light.position, corners) * (1 - 1e-9) - margin - dilation;
@@ -175,28 +193,29 @@ ShadowQuery ShadowQuery::ofCluster(const Aabb& b, const RowTransform& m, const L
     // Point: a face whose plane has L strictly outside (f . L > max of f . x); for l >= 1,
     // f . (L + l (x - L)) = f . L + l (f . x - f . L) <= f . x.
     for (int i = 0; i < 3; ++i) {
-        const glm::dvec3 a = m.rows[size_t((i + 1) % 3)], c = m.rows[size_t((i + 2) % 3)];
-        glm::dvec3 f = glm::cross(a, c);  // normal of the faces spanned by the other two axes
-        const double len = glm::length(f);
-        const double fScale = glm::length(a) * glm::length(c) + len;
+        // The normal of the faces spanned by the other two axes, with its rounding bound.
+        const Bounded3 fb = cross(exactly(m.rows[size_t((i + 1) % 3)]), exactly(m.rows[size_t((i + 2) % 3)]));
+        glm::dvec3 f = fb.value();
         if (light.directional) {
-            const double along = glm::dot(f, light.direction);
-            if (!(std::abs(along) > 1e-9 * fScale * glm::length(light.direction))) continue;  // edge-on: left out
-            if (along > 0) f = -f;  // now f . d < 0
+            const int along = certainSign(dot(fb, exactly(light.direction)));
+            if (along == 0) continue;  // edge-on: left out
+            if (along > 0) f = -f;     // now f* . d < 0
         } else {
-            // The side of the box the light is on, if it is outside the slab of these faces.
-            const double atL = glm::dot(f, light.position);
-            const double hi = glm::dot(f, extreme(f, false)), lo = glm::dot(f, extreme(f, true));
-            const double slack = 1e-9 * fScale * (norm1(light.position) + norm1(corners.max) + norm1(corners.min) + 1.0);
-            if (atL > hi + slack) {
-            } else if (atL < lo - slack) {
-                f = -f;
-            } else {
-                continue;  // L between the two faces: neither bounds the cone
+            // The side of the box the light is on, if it is certainly outside the slab of
+            // these faces (beyond every corner).
+            int side = 0;
+            for (int k = 0; k < 8 && side != 2; ++k) {
+                const int sk = certainSign(dot(fb, difference(light.position, q.pts_[size_t(k)])));
+                side = sk == 0 ? 2 : side == 0 || side == sk ? sk : 2;
             }
+            if (side == 2) continue;  // L between the two faces (or too near one): neither bounds the cone
+            if (side < 0) f = -f;
         }
+        const double len = glm::length(f);
+        const glm::dvec3 err = fb.error();
         add(q.hs_, q.count_,
-            HalfSpace{-f, extreme(f, false), dilation > 0 ? dilation * len * (1 + 1e-9) : 0.0, 1e-12 * fScale, margin * len});
+            HalfSpace{-f, extreme(f, false), dilation > 0 ? dilation * len * (1 + 1e-9) : 0.0, maxOf(err) * (1 + gamma(2)),
+                      margin * len + dilation * (err.x + err.y + err.z) * 2});
     }
     // Slabs (or wedges) of the box's own axes.
     for (int i = 0; i < 3; ++i) {

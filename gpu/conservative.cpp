@@ -5,6 +5,8 @@
 
 #include <glm/geometric.hpp>
 
+#include "core/rounding.h"
+
 namespace shadowcull::gpu {
 
 namespace {
@@ -123,14 +125,15 @@ bool PieceBuilder::hullBounds(const glm::dvec3* pts, size_t n, double bounds[4])
 
 bool PieceBuilder::clipsAway(const glm::dvec3* pts, size_t n) const {
     if (!view_.perspective || n == 0) return false;
-    // The clip functions of triangle(), each with the size of its terms for the margin.
+    // The clip functions of triangle() at each point's view coordinates (LightView::toView),
+    // each certainly negative in exact arithmetic (core/rounding.h) for the piece to go.
     bool out[5] = {true, true, true, true, true};
+    const Bounded g = exactly(guard_), nz = exactly(nearZ_);
     for (size_t k = 0; k < n; ++k) {
-        const glm::dvec3 v = view_.toView(pts[k]);
-        const double g = guard_, nz = nearZ_;
-        const double f[5] = {v.z - nz, g * v.z - v.x, g * v.z + v.x, g * v.z - v.y, g * v.z + v.y};
-        const double size = std::abs(v.x) + std::abs(v.y) + (1 + g) * std::abs(v.z) + nz;
-        for (int c = 0; c < 5; ++c) out[c] = out[c] && f[c] < -1e-9 * size;
+        const Bounded3 d = difference(pts[k], view_.eye);
+        const Bounded x = dot(d, exactly(view_.U)), y = dot(d, exactly(view_.V)), z = dot(d, exactly(view_.W));
+        const Bounded f[5] = {z - nz, g * z - x, g * z + x, g * z - y, g * z + y};
+        for (int c = 0; c < 5; ++c) out[c] = out[c] && certainSign(f[c]) < 0;
     }
     return out[0] || out[1] || out[2] || out[3] || out[4];
 }

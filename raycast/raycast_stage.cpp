@@ -10,8 +10,10 @@
 //   2. a later hit q lies deeper than depth(p) + bias + slopeBias * tan(theta);
 //   3. q's surface faces the light or is two-sided, q is not under terrain by more than
 //      terrainTolerance, and q is within range and cone.
-// Every comparison carries a margin on the side of "no witness", so rounding can only
-// turn a witness into an undecided bit, never create one: depths are recomputed in double
+// Every comparison of 2 and 3 carries a margin on the side of "no witness", so rounding
+// there can only turn a witness into an undecided bit, never create one (condition 1 is
+// Embree's float hit alone: an occluder grazing the segment to p within float rounding may
+// be missed, a false keep; docs/semantics.md): depths are recomputed in double
 // on the hit triangles (Tracer::depthOf) and compared with double rounding's margin, so
 // that witnesses a fraction of a millimetre deep count; where that is ill-conditioned,
 // Embree's float depths with a margin of 1e-6 of the window's size.
