@@ -288,7 +288,9 @@ bool ShadowQuery::clusterMisses(const Triangle& r, double beta) const {
         nearest = std::min(nearest, glm::dot(w, pts_[size_t(i)]));
         size = std::max(size, norm1(pts_[size_t(i)]));
     }
-    if (deepest < nearest + beta * dLen * (1 - 1e-9) - margin_ - 1e-12 * size) return true;
+    // Each rounded dot is within gamma(8) |x|_1 of w* . x (w = fl(d / |d|) within gamma(4) of
+    // w*, three products and sums); 1 - 1e-9 takes |d|'s and the sum's rounding.
+    if (deepest < nearest + beta * dLen * (1 - 1e-9) - margin_ - 2 * gamma(8) * size) return true;
     return receiverPlaneInFrontOf(r, pts_.data(), pointCount_, light, beta, margin_, false);
 }
 
