@@ -158,17 +158,19 @@ results::ChunkRecord chunkRecord(const ChunkVerdicts& cv) {
     return c;
 }
 
+results::LightRecord lightRecord(const Light& L, size_t l) {
+    results::LightRecord r;
+    r.index = int(l) + 1, r.bit = int(l), r.name = L.name, r.type = lightTypeName(L.type);
+    if (L.type != LightType::Directional) r.position = L.position, r.range = L.range;
+    if (L.type != LightType::Point) r.direction = L.direction;
+    if (L.type == LightType::Spot) r.coneAngle = L.coneHalfAngleDeg;
+    r.bias = L.bias, r.slopeBias = L.slopeBias, r.filterRadius = L.filterRadius, r.normalBias = L.normalBias;
+    return r;
+}
+
 ResultsBuilder::ResultsBuilder(const SpaceSettings& settings) : tally_(settings.lights.size()) {
     file_.space = settings.spaceDir;
-    for (size_t l = 0; l < settings.lights.size(); ++l) {
-        const Light& L = settings.lights[l];
-        results::LightRecord& r = file_.lights.emplace_back();
-        r.index = int(l) + 1, r.bit = int(l), r.name = L.name, r.type = lightTypeName(L.type);
-        if (L.type != LightType::Directional) r.position = L.position, r.range = L.range;
-        if (L.type != LightType::Point) r.direction = L.direction;
-        if (L.type == LightType::Spot) r.coneAngle = L.coneHalfAngleDeg;
-        r.bias = L.bias, r.slopeBias = L.slopeBias, r.filterRadius = L.filterRadius, r.normalBias = L.normalBias;
-    }
+    for (size_t l = 0; l < settings.lights.size(); ++l) file_.lights.push_back(lightRecord(settings.lights[l], l));
 }
 
 ResultsBuilder::ResultsBuilder(std::vector<results::LightRecord> lights) : tally_(lights.size()) {

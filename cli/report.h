@@ -59,6 +59,10 @@ private:
     savings::Tally tally_;
 };
 
+// Light `l` (from 0) of a space as the results file records it: what `report` compares a
+// results file's lights with.
+results::LightRecord lightRecord(const Light& L, size_t l);
+
 // One baked chunk as the results file lists it (what --resume keeps for a later bake).
 results::ChunkRecord chunkRecord(const ChunkVerdicts& cv);
 

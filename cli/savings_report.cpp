@@ -1,12 +1,15 @@
 #include "cli/savings_report.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cstdio>
+#include <tuple>
 #include <ostream>
 #include <set>
 
 #include "cli/output_guard.h"
 #include "cli/pipeline.h"
+#include "cli/report.h"
 #include "cli/savings_model.h"
 #include "core/chunk_writer.h"
 #include "core/scene.h"
@@ -108,6 +111,64 @@ const std::vector<std::string> kHeader{"",          "all casters",     "(a) engi
 struct Mismatch {
     std::string message;
 };
+
+// Lights that are not the space's at all (another count, name or type).
+struct OtherSpace {
+    std::string message;
+};
+
+// Shortest text that reads back as the same double: two settings that differ never print
+// alike.
+std::string exactNumber(double v) {
+    char buf[32];
+    const auto r = std::to_chars(buf, buf + sizeof buf, v);
+    return std::string(buf, r.ptr);
+}
+
+std::string exactVec(const glm::dvec3& v) {
+    return "(" + exactNumber(v.x) + ", " + exactNumber(v.y) + ", " + exactNumber(v.z) + ")";
+}
+
+// Every setting `baked` (a results file's light) records differently from `now` (the
+// space's), as "range 60 m in the results, 25 m in SPACE/space.xml". The verdicts depend on
+// each of them; one an older file does not record is not compared.
+std::vector<std::string> settingChanges(const results::LightRecord& baked, const results::LightRecord& now,
+                                        const std::string& spaceXml) {
+    std::vector<std::string> changes;
+    auto add = [&](const char* what, const std::string& a, const std::string& b) {
+        changes.push_back(std::string(what) + " " + a + " in the results, " + b + " in " + spaceXml);
+    };
+    for (const auto& [what, a, b] : {std::tuple{"position", &baked.position, &now.position},
+                                     std::tuple{"direction", &baked.direction, &now.direction}})
+        if (*a && *b && **a != **b) add(what, exactVec(**a), exactVec(**b));
+    for (const auto& [what, a, b, unit] :
+         {std::tuple{"range", &baked.range, &now.range, " m"}, std::tuple{"cone angle", &baked.coneAngle, &now.coneAngle, " deg"},
+          std::tuple{"bias", &baked.bias, &now.bias, " m"}, std::tuple{"slope bias", &baked.slopeBias, &now.slopeBias, " m"},
+          std::tuple{"filter radius", &baked.filterRadius, &now.filterRadius, " m"},
+          std::tuple{"normal bias", &baked.normalBias, &now.normalBias, " m"}})
+        if (*a && *b && **a != **b) add(what, exactNumber(**a) + unit, exactNumber(**b) + unit);
+    return changes;
+}
+
+// The results' lights against the space's: another count, name or type is another space
+// (OtherSpace); another setting is this space before it changed (Mismatch), every changed
+// setting named.
+void checkLights(const std::vector<results::LightRecord>& baked, const std::vector<Light>& now, const std::string& spaceDir) {
+    if (baked.size() != now.size())
+        throw OtherSpace{"they have " + std::to_string(baked.size()) + " lights, " + spaceDir + " has " +
+                         std::to_string(now.size())};
+    std::string changed;
+    for (size_t l = 0; l < baked.size(); ++l) {
+        const results::LightRecord& a = baked[l];
+        const results::LightRecord b = lightRecord(now[l], l);
+        if (a.name != b.name || a.type != b.type)
+            throw OtherSpace{"their light " + std::to_string(l + 1) + " is '" + a.name + "' (" + a.type + "), " + spaceDir +
+                             " has '" + b.name + "' (" + b.type + ")"};
+        for (const std::string& c : settingChanges(a, b, spaceDir + "/space.xml"))
+            changed += (changed.empty() ? "" : "; ") + ("light " + std::to_string(l + 1) + " '" + b.name + "': " + c);
+    }
+    if (!changed.empty()) throw Mismatch{changed};
+}
 
 // Fills in every group's placed triangles from the space, checking that each chunk,
 // object and group of the results is there.
@@ -246,21 +307,11 @@ int runReport(const ReportOptions& opt, std::ostream& out, std::ostream& err) {
     Expected<Space> space = loadSpace(opt.spaceDir, opt.resourceRoot, &coords);
     if (!space) return fail(space.error());
     if (Status s = refuseInputAsOutput(opt.htmlPath, space->inputFiles(), "--html"); !s) return fail(s.error());
-    if (file->lights.size() != space->settings.lights.size())
-        return fail(makeError(ErrorKind::BadInput, opt.resultsPath, 0,
-                              "results of another space: they have " + std::to_string(file->lights.size()) + " lights, " +
-                                  opt.spaceDir + " has " + std::to_string(space->settings.lights.size())));
-    for (size_t l = 0; l < file->lights.size(); ++l) {
-        const results::LightRecord& a = file->lights[l];
-        const Light& b = space->settings.lights[l];
-        if (a.name != b.name || a.type != lightTypeName(b.type))
-            return fail(makeError(ErrorKind::BadInput, opt.resultsPath, 0,
-                                  "results of another space: their light " + std::to_string(l + 1) + " is '" + a.name +
-                                      "' (" + a.type + "), " + opt.spaceDir + " has '" + b.name + "' (" +
-                                      lightTypeName(b.type) + ")"));
-    }
     try {
+        checkLights(file->lights, space->settings.lights, opt.spaceDir);
         countTriangles(*file, *space);
+    } catch (const OtherSpace& e) {
+        return fail(makeError(ErrorKind::BadInput, opt.resultsPath, 0, "results of another space: " + e.message));
     } catch (const Mismatch& e) {
         return fail(makeError(ErrorKind::BadInput, opt.resultsPath, 0,
                               "results of another space, or of " + opt.spaceDir + " before it changed (bake it again): " +

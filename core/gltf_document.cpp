@@ -65,6 +65,17 @@ void readFile(const fs::path& path, const std::string& what, std::vector<uint8_t
 
 std::string at(const std::string& array, size_t i) { return gltfPath(array, i); }
 
+std::string integerComponentName(uint64_t componentType) {
+    switch (componentType) {
+        case 5120: return "BYTE";
+        case 5121: return "UNSIGNED_BYTE";
+        case 5122: return "SHORT";
+        case 5123: return "UNSIGNED_SHORT";
+        case 5125: return "UNSIGNED_INT";
+        default: return "not an integer type";
+    }
+}
+
 const json* member(const json& obj, const char* key) {
     auto it = obj.find(key);
     return it == obj.end() ? nullptr : &*it;
@@ -93,15 +104,28 @@ std::vector<double> numbers(const json& obj, const char* key, const std::string&
     return out;
 }
 
-// A column-major glTF matrix or the product T * R * S of the TRS properties.
-glm::dmat4 localTransform(const json& node, const std::string& where) {
+// A column-major glTF `matrix`. glTF allows it or TRS, never both, and only an affine one:
+// with TRS beside it, or a last row other than 0 0 0 1, which placement was meant is not
+// known, so neither is guessed (the row would be dropped, or the TRS).
+glm::dmat4 matrixTransform(const json& node, const std::string& where) {
+    for (const char* trs : {"translation", "rotation", "scale"})
+        if (member(node, trs))
+            fail(where + ": both matrix and " + trs + " (glTF allows one or the other; which placement was meant is not known)");
+    const std::vector<double> v = numbers(node, "matrix", where, 16);
     glm::dmat4 m(1.0);
-    if (member(node, "matrix")) {
-        std::vector<double> v = numbers(node, "matrix", where, 16);
-        for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 4; ++r) m[c][r] = v[size_t(c * 4 + r)];
-        return m;
-    }
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) m[c][r] = v[size_t(c * 4 + r)];
+    if (m[0][3] != 0 || m[1][3] != 0 || m[2][3] != 0 || m[3][3] != 1)
+        fail(where + ".matrix: elements 3, 7, 11 and 15 (the last row) are " + formatNumber(m[0][3]) + " " +
+             formatNumber(m[1][3]) + " " + formatNumber(m[2][3]) + " " + formatNumber(m[3][3]) +
+             ", not 0 0 0 1 (a node matrix must be affine)");
+    return m;
+}
+
+// The node's `matrix`, or the product T * R * S of its TRS properties.
+glm::dmat4 localTransform(const json& node, const std::string& where) {
+    if (member(node, "matrix")) return matrixTransform(node, where);
+    glm::dmat4 m(1.0);
     if (member(node, "translation")) {
         std::vector<double> t = numbers(node, "translation", where, 3);
         m = glm::translate(m, glm::dvec3(t[0], t[1], t[2]));
@@ -155,6 +179,13 @@ struct ViewBytes {
 // triangle or per index (12:1, 4:1). A view that claims more is corrupt or hostile.
 constexpr uint64_t kMeshoptMaxRatio = 64;
 
+// Extensions a file may require: those read where they occur (positions, compression,
+// lights), and those that only change how texture images are stored or mapped (no image
+// is read: alpha testing comes from alphaMode alone).
+constexpr const char* kHonouredExtensions[] = {
+    "KHR_mesh_quantization", "EXT_meshopt_compression", "KHR_draco_mesh_compression", "KHR_lights_punctual",
+    "KHR_texture_basisu",    "EXT_texture_webp",        "EXT_texture_avif",           "KHR_texture_transform"};
+
 
 }  // namespace
 
@@ -202,13 +233,38 @@ struct GltfDocument::Impl {
             if (version && version->is_string() && version->get<std::string>().rfind("2.", 0) != 0)
                 fail("asset.version: glTF " + version->get<std::string>() + " is not supported (2.x expected)");
         }
-        // extensionsRequired: the geometry extensions (KHR_mesh_quantization,
-        // EXT_meshopt_compression, KHR_draco_mesh_compression) are read where they occur;
-        // the others concern nothing shadow culling reads (textures, materials), except
-        // EXT_mesh_gpu_instancing, refused on the node that uses it.
+        checkRequiredExtensions();
         buffers.resize(array("buffers").size());  // before any buffer() hands out references
         meshes.resize(array("meshes").size());
         readNodes();
+    }
+
+    // A reader must refuse a file whose required extension it does not implement: read
+    // without it, the file means something else (instanced nodes drawn once, materials
+    // switched, positions of another encoding).
+    void checkRequiredExtensions() const {
+        const json* required = member(doc, "extensionsRequired");
+        if (!required) return;
+        if (!required->is_array()) fail("extensionsRequired: array of strings expected");
+        for (size_t i = 0; i < required->size(); ++i) {
+            const json& name = (*required)[i];
+            if (!name.is_string()) fail(at("extensionsRequired", i) + ": string expected");
+            const auto& known = kHonouredExtensions;
+            if (std::find(std::begin(known), std::end(known), name.get<std::string>()) == std::end(known))
+                fail(at("extensionsRequired", i) + ": '" + name.get<std::string>() +
+                     "' is required, and this reader does not implement it (it implements KHR_mesh_quantization, "
+                     "EXT_meshopt_compression, KHR_draco_mesh_compression and KHR_lights_punctual, and reads no "
+                     "texture, so texture formats and transforms may be required too)");
+        }
+    }
+
+    // Whether the file declares extension `name` (extensionsUsed lists every one it uses,
+    // extensionsRequired those it cannot be read without).
+    bool declares(const char* name) const {
+        for (const char* list : {"extensionsUsed", "extensionsRequired"})
+            if (const json* l = member(doc, list); l && l->is_array() && std::find(l->begin(), l->end(), name) != l->end())
+                return true;
+        return false;
     }
 
     const json& array(const char* name) const {
@@ -577,6 +633,8 @@ struct GltfDocument::Impl {
         }
         for (size_t n = 0; n < nodes.size(); ++n)
             for (size_t c : nodes[n].children) {
+                if (nodes[c].parent == long(n))
+                    fail(at("nodes", n) + ".children: " + at("nodes", c) + " is listed twice (a node is placed once)");
                 if (nodes[c].parent >= 0)
                     fail(at("nodes", c) + " has more than one parent (nodes must form trees)");
                 nodes[c].parent = long(n);
@@ -618,11 +676,16 @@ struct GltfDocument::Impl {
         const json* list = member(scene, "nodes");
         if (!list) return roots;
         if (!list->is_array()) fail(where + ".nodes: array expected");
+        std::vector<bool> listed(nodes.size(), false);
         for (const json& n : *list) {
             if (!n.is_number_unsigned() || n.get<uint64_t>() >= nodes.size())
                 fail(where + ".nodes: " + n.dump() + " is not a node index");
             if (nodes[n.get<size_t>()].parent >= 0)
                 fail(where + ".nodes: " + at("nodes", n.get<size_t>()) + " is not a root node");
+            // Listed twice, its whole tree would be placed twice: every model doubled.
+            if (listed[n.get<size_t>()])
+                fail(where + ".nodes: " + at("nodes", n.get<size_t>()) + " is listed twice (a node is placed once)");
+            listed[n.get<size_t>()] = true;
             roots.push_back(n.get<size_t>());
         }
         return roots;
@@ -695,6 +758,12 @@ struct GltfDocument::Impl {
         if (pos.componentType == 5125)
             fail(pos.where + ": POSITION componentType 5125 (UNSIGNED_INT) is not allowed (FLOAT, or BYTE, UNSIGNED_BYTE, " +
                  "SHORT, UNSIGNED_SHORT of KHR_mesh_quantization)");
+        // Without the extension glTF positions are FLOAT: integer ones mean a file that is
+        // not what it says, not quantized positions to guess a scale for.
+        if (pos.componentType != 5126 && !declares("KHR_mesh_quantization"))
+            fail(pos.where + ": POSITION componentType " + std::to_string(pos.componentType) + " (" +
+                 integerComponentName(pos.componentType) +
+                 ") needs KHR_mesh_quantization in extensionsUsed (without it, positions are FLOAT)");
         const size_t size = componentSize(pos.componentType);
         spend(pos.count, pos.where);
         out.positions.resize(pos.count, glm::dvec3(0.0));

@@ -50,9 +50,10 @@ struct GltfNode {
 
 class GltfDocument {
 public:
-    // Reads the container and the JSON and checks the node forest (every node has at most
-    // one parent, no node is its own ancestor, indices in range) and every node's
-    // transform. Buffers are read when a mesh first needs them.
+    // Reads the container and the JSON and checks the required extensions (each one the
+    // reader implements), the node forest (every node has at most one parent and is its
+    // child once, no node is its own ancestor, indices in range) and every node's transform
+    // (an affine `matrix` or TRS, not both). Buffers are read when a mesh first needs them.
     static Expected<GltfDocument> open(const std::string& path);
 
     GltfDocument(GltfDocument&&) noexcept;
@@ -67,7 +68,7 @@ public:
 
     // Root nodes of scene `scene`, else of the default scene (`scene`, else scenes[0]),
     // else every node that is nobody's child when the file has no scenes. An index out of
-    // range or a listed node that has a parent is an error.
+    // range, a listed node that has a parent, or one listed twice is an error.
     Expected<std::vector<size_t>> sceneRoots(std::optional<size_t> scene = std::nullopt) const;
 
     // Mesh `m`'s primitive groups (names and material flags) without decoding geometry.

@@ -93,6 +93,31 @@ bool finite(const glm::dmat4& m) {
     return true;
 }
 
+// The largest entry of the 3x3 part, in magnitude.
+double largestLinearEntry(const glm::dmat4& m) {
+    double largest = 0.0;
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) largest = std::max(largest, std::abs(m[c][r]));
+    return largest;
+}
+
+// Why the composed transform of a node that draws (`drawsMesh`) or lights something cannot
+// place it, or "". A mesh goes into float geometry, so its scale is bounded; a light takes
+// only its position and axis, so its scale matters only where it breaks the singularity
+// test. Either way a huge scale is named as such, before the singularity test: a scale of
+// 1e300 overflows the determinant, and "singular" would send the user looking for a
+// flattened axis.
+std::string transformProblem(const glm::dmat4& world, bool drawsMesh) {
+    if (!finite(world)) return "the composed node transform is not finite";
+    const double largest = largestLinearEntry(world);
+    const bool isSingular = singular(world);
+    if (!(largest <= limits::kMaxLinearEntry) && (drawsMesh || isSingular))
+        return "the composed node transform scales by " + formatNumber(largest) + ", beyond the accepted " +
+               formatNumber(limits::kMaxLinearEntry) + " (docs/format.md, accepted ranges)";
+    if (isSingular) return "the composed node transform is singular (it flattens the node to a plane, a line or a point)";
+    return "";
+}
+
 // A number in a node's extras: absent -> fallback; present -> a finite number >= 0.
 double extrasLength(const json* extras, const char* key, double fallback, const std::string& where) {
     const json* v = extras ? member(*extras, key) : nullptr;
@@ -102,6 +127,17 @@ double extrasLength(const json* extras, const char* key, double fallback, const 
         fail(where + ".extras." + key + ": a number of metres in [0, " + formatNumber(limits::kMaxLength) + "] expected, got " +
              v->dump());
     return v->get<double>();
+}
+
+// Export writes the masks into a mesh node's `extras` and the lights into the root's: a
+// value there that is not an object leaves no room for them, so it is refused at import,
+// before anyone bakes a scene whose export must fail. `where` is "nodes[N]." or "".
+void requireObjectExtras(const json& holder, const std::string& where, const char* what) {
+    const json* extras = member(holder, "extras");
+    if (!extras || extras->is_object()) return;
+    std::string value = extras->dump();
+    if (value.size() > 60) value = value.substr(0, 57) + "...";
+    fail(where + "extras: an object expected (export writes the " + what + " into it), got " + value);
 }
 
 std::string sanitized(const std::string& name) {
@@ -122,6 +158,7 @@ public:
             fail("the file defines no scene (\"scenes\" is missing or empty): nothing says which nodes to import");
         Expected<std::vector<size_t>> roots = doc_.sceneRoots(opt_.scene);
         if (!roots) throw roots.error();
+        requireObjectExtras(doc_.json(), "", "lights");
         findAnimated();
         placements_.reserve(doc_.nodes().size());
         walk(*roots);
@@ -172,8 +209,7 @@ private:
             }
             for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.emplace_back(*c, world, moved, casts);
             if (!node.mesh && !node.light) continue;
-            if (!finite(world)) fail(where + ": the composed node transform is not finite");
-            if (singular(world)) fail(where + ": the composed node transform is singular (it flattens the node to a plane, a line or a point)");
+            if (const std::string why = transformProblem(world, node.mesh.has_value()); !why.empty()) fail(where + ": " + why);
             if (node.light) lights_.push_back({n, world});
             if (!node.mesh) continue;
             if (moved || member(nj, "skin"))
@@ -206,6 +242,7 @@ private:
                 warn(where, gltfPath("meshes", p.mesh) + " has no triangles (points or lines only): no model written");
                 continue;
             }
+            requireObjectExtras(nj, where + ".", "masks");
             report_.triangles += triangles;
             placements_.push_back(p);
         }
@@ -358,11 +395,6 @@ private:
             if (!(far <= limits::kMaxLocalCoordinate))
                 fail(where + ": its origin or bounds lie " + formatNumber(far) + " m from its chunk origin, beyond the accepted " +
                      formatNumber(limits::kMaxLocalCoordinate) + " m");
-            for (int c = 0; c < 3; ++c)
-                for (int r2 = 0; r2 < 3; ++r2)
-                    if (!(std::abs(p.world[c][r2]) <= limits::kMaxLinearEntry))
-                        fail(where + ": the composed transform scales by more than the accepted " +
-                             formatNumber(limits::kMaxLinearEntry));
         }
         const int span = std::max(x1 - x0, z1 - z0);  // chunks between the scene's extremes
         const double across = std::max(x1 - x0, z1 - z0) * S + S;
@@ -640,9 +672,9 @@ std::string sceneIdentity(const json& gltf) {
 
 Expected<ImportReport> importScene(const ImportOptions& opt) {
     if (Status s = checkOutput(opt); !s) return s.error();
-    Expected<GltfDocument> doc = GltfDocument::open(opt.scenePath);
-    if (!doc) return doc.error();
     try {
+        Expected<GltfDocument> doc = GltfDocument::open(opt.scenePath);
+        if (!doc) throw doc.error();
         Importer importer(opt, *doc);
         ImportReport report = importer.run();
         for (const Diagnostic& d : doc->warnings()) report.warnings.push_back(d);

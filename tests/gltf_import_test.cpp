@@ -295,6 +295,25 @@ TEST(GltfImport, BadScenesAreRefusedWithTheirJsonPathAndNothingIsWritten) {
              for (int i = 0; i < 30; ++i) b.setLight(b.node("extra", -1), {{"type", "directional"}});
          }},
         {"bad extras", "nodes[2].extras.shadowcull_bias", [](GltfSceneBuilder& b) { b.setExtras(2, {{"shadowcull_bias", "a lot"}}); }},
+        // Issue 35: what import would have read as something else, or doubled, or taken
+        // only to fail at export after the bake.
+        {"unknown required extension", "extensionsRequired[0]: 'KHR_frobnicate' is required",
+         [](GltfSceneBuilder& b) { b.doc()["extensionsRequired"] = {"KHR_frobnicate"}; }},
+        {"matrix with a projective last row", "nodes[5].matrix: elements 3, 7, 11 and 15 (the last row) are 0 0 0.25 1",
+         [](GltfSceneBuilder& b) {
+             b.doc()["nodes"][5].erase("translation");
+             b.doc()["nodes"][5]["matrix"] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0.25, 0, 0.55, 0, 1};
+         }},
+        {"matrix and TRS", "nodes[5]: both matrix and translation",
+         [](GltfSceneBuilder& b) { b.doc()["nodes"][5]["matrix"] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }},
+        {"root listed twice", "scenes[0].nodes: nodes[0] is listed twice",
+         [](GltfSceneBuilder& b) { b.doc()["scenes"][0]["nodes"] = {0, 0}; }},
+        {"scale 1e300", "nodes[5]: the composed node transform scales by 1e+300, beyond the accepted 10000",
+         [](GltfSceneBuilder& b) { b.doc()["nodes"][5]["scale"] = {1e300, 1e300, 1e300}; }},
+        {"mesh node extras not an object", "nodes[5].extras: an object expected (export writes the masks into it), got \"crate\"",
+         [](GltfSceneBuilder& b) { b.setExtras(5, "crate"); }},
+        {"root extras not an object", "extras: an object expected (export writes the lights into it), got [1]",
+         [](GltfSceneBuilder& b) { b.doc()["extras"] = {1}; }},
     };
     for (const BadScene& c : cases) {
         SCOPED_TRACE(c.name);

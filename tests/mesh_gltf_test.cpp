@@ -564,6 +564,80 @@ TEST(MeshGltf, HugePlacementsAndEmptyMeshesAreErrorsOfTheFile) {
     expectError(m, "no triangles");  // ...that no model can be baked from
 }
 
+// Issue 35: what the file states but the reader cannot honour is refused at its JSON path,
+// never read as something else (a required extension ignored, a matrix's last row
+// dropped, TRS dropped beside a matrix, bytes read as positions without the extension that
+// makes them positions, a root placed twice).
+struct Unhonoured {
+    const char* name;
+    std::function<void(GltfBuilder&)> edit;
+    std::string message;
+};
+
+TEST(MeshGltf, WhatTheReaderCannotHonourIsRefusedAtItsJsonPath) {
+    const std::vector<uint8_t> bytes = {0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0};  // kTriangle as UNSIGNED_BYTE VEC3, stride 4
+    const std::vector<Unhonoured> cases = {
+        {"unknown required extension",
+         [](GltfBuilder& b) { b.doc["extensionsRequired"] = {"KHR_mesh_quantization", "KHR_frobnicate"}; },
+         "extensionsRequired[1]: 'KHR_frobnicate' is required, and this reader does not implement it"},
+        {"required instancing", [](GltfBuilder& b) { b.doc["extensionsRequired"] = {"EXT_mesh_gpu_instancing"}; },
+         "extensionsRequired[0]: 'EXT_mesh_gpu_instancing' is required"},
+        {"extensionsRequired not strings", [](GltfBuilder& b) { b.doc["extensionsRequired"] = {7}; },
+         "extensionsRequired[0]: string expected"},
+        {"matrix with a projective last row",
+         [](GltfBuilder& b) { b.doc["nodes"][0]["matrix"] = {1, 0, 0, 0.5, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; },
+         "nodes[0].matrix: elements 3, 7, 11 and 15 (the last row) are 0.5 0 0 1, not 0 0 0 1"},
+        {"matrix with w 2", [](GltfBuilder& b) { b.doc["nodes"][0]["matrix"] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 2}; },
+         "nodes[0].matrix: elements 3, 7, 11 and 15 (the last row) are 0 0 0 2"},
+        {"matrix and translation",
+         [](GltfBuilder& b) {
+             b.doc["nodes"][0]["matrix"] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+             b.doc["nodes"][0]["translation"] = {1, 2, 3};
+         },
+         "nodes[0]: both matrix and translation"},
+        {"matrix and scale",
+         [](GltfBuilder& b) {
+             b.doc["nodes"][0]["matrix"] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+             b.doc["nodes"][0]["scale"] = {2, 2, 2};
+         },
+         "nodes[0]: both matrix and scale"},
+        {"byte positions without KHR_mesh_quantization",
+         [&](GltfBuilder& b) {
+             b.doc["accessors"][0] = {{"bufferView", b.addView(bytes.data(), bytes.size(), 4)}, {"componentType", 5121},
+                                      {"count", 3}, {"type", "VEC3"}};
+         },
+         "accessors[0]: POSITION componentType 5121 (UNSIGNED_BYTE) needs KHR_mesh_quantization in extensionsUsed"},
+        {"a root listed twice", [](GltfBuilder& b) { b.doc["scenes"][0]["nodes"] = {0, 0}; },
+         "scenes[0].nodes: nodes[0] is listed twice"},
+        {"a child listed twice",
+         [](GltfBuilder& b) {
+             b.addNode({{"mesh", 0}});
+             b.doc["nodes"][0]["children"] = {1, 1};
+         },
+         "nodes[0].children: nodes[1] is listed twice"},
+    };
+    for (const Unhonoured& c : cases) {
+        SCOPED_TRACE(c.name);
+        GltfBuilder b = oneTriangle();
+        c.edit(b);
+        expectError(loadString(b.gltf()), c.message);
+    }
+
+    // What it does honour: the extensions it implements, and the texture formats (no image
+    // is read), required or not; quantized positions named in extensionsUsed alone.
+    GltfBuilder b = oneTriangle();
+    b.doc["extensionsRequired"] = {"KHR_mesh_quantization", "EXT_meshopt_compression", "KHR_draco_mesh_compression",
+                                   "KHR_lights_punctual", "KHR_texture_basisu", "EXT_texture_webp"};
+    EXPECT_TRUE(loadString(b.gltf()));
+    b.doc.erase("extensionsRequired");
+    b.doc["accessors"][0] = {{"bufferView", b.addView(bytes.data(), bytes.size(), 4)}, {"componentType", 5121},
+                             {"count", 3}, {"type", "VEC3"}};
+    b.doc["extensionsUsed"] = {"KHR_mesh_quantization"};
+    const Expected<Mesh> quantized = loadString(b.gltf());
+    ASSERT_TRUE(quantized) << quantized.error().what();
+    EXPECT_EQ(quantized->positions[1], glm::dvec3(1, 0, 0));
+}
+
 // ---------------------------------------------------------------------------------------
 // What asset pipelines write: quantized positions, sparse accessors, meshopt and Draco.
 
@@ -884,6 +958,7 @@ TEST(MeshGltf, MeshoptFiltersDecode) {
         GltfBuilder b;
         const size_t pos = b.addAccessor(b.addMeshoptView(encoded, 3, 4, "ATTRIBUTES", "OCTAHEDRAL"), 5120, 3, "VEC3");
         b.doc["accessors"][pos]["normalized"] = true;
+        b.requireExtension("KHR_mesh_quantization");  // BYTE positions
         b.addMesh({{{"attributes", {{"POSITION", pos}}}}});
         b.addNode({{"mesh", 0}});
         auto m = loadString(b.gltf());

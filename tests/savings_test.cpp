@@ -267,6 +267,50 @@ TEST(Savings, ReportErrors) {
     EXPECT_TRUE(fs::exists(dir / "r.html"));
 }
 
+// Issue 35: results baked with other light settings are not the space's figures: each
+// setting the results record is compared (the lamp's range 10 m baked, 25 m now).
+TEST(Savings, ReportRefusesResultsBakedWithOtherLightSettings) {
+    struct Change {
+        const char* name;
+        std::string from, to, message;
+    };
+    const std::vector<Change> changes = {
+        {"range", "<range> 10 </range>", "<range> 25 </range>", "light 2 'lamp': range 10 m in the results, 25 m in "},
+        {"position", "<position> 20 5 20 </position>", "<position> 20 6 20 </position>",
+         "light 2 'lamp': position (20, 5, 20) in the results, (20, 6, 20) in "},
+        {"cone", "<coneAngle> 30 </coneAngle>", "<coneAngle> 35 </coneAngle>",
+         "light 3 'torch': cone angle 30 deg in the results, 35 deg in "},
+        {"bias", "<bias> 0 </bias>", "<bias> 0.5 </bias>", "light 1 'sun': bias 0 m in the results, 0.5 m in "},
+        {"filter radius", "<filterRadius> 0 </filterRadius>", "<filterRadius> 0.3 </filterRadius>",
+         "light 1 'sun': filter radius 0 m in the results, 0.3 m in "},
+        {"normal bias", "<filterRadius> 0 </filterRadius>", "<filterRadius> 0 </filterRadius> <normalBias> 0.1 </normalBias>",
+         "light 1 'sun': normal bias 0 m in the results, 0.1 m in "},
+    };
+    const fs::path dir = freshTestDir();
+    savingsScene().write((dir / "space").string());
+    bake(dir / "space", false, dir / "results.json");
+    const std::string space = readText(dir / "space" / "space.xml");
+    cli::ReportOptions o;
+    o.spaceDir = (dir / "space").string();
+    o.resultsPath = (dir / "results.json").string();
+    for (const Change& c : changes) {
+        SCOPED_TRACE(c.name);
+        std::string edited = space;
+        ASSERT_NE(edited.find(c.from), std::string::npos) << edited;
+        edited.replace(edited.find(c.from), c.from.size(), c.to);
+        writeText(dir / "space" / "space.xml", edited);
+        std::ostringstream out, err;
+        EXPECT_EQ(cli::runReport(o, out, err), cli::kExitBadInput) << err.str();
+        EXPECT_TRUE(has(err.str(), "results of another space, or of " + o.spaceDir + " before it changed")) << err.str();
+        EXPECT_TRUE(has(err.str(), c.message)) << err.str();
+        EXPECT_EQ(out.str(), "") << "nothing is reported";
+    }
+    // The space as baked reports.
+    writeText(dir / "space" / "space.xml", space);
+    std::ostringstream out, err;
+    EXPECT_EQ(cli::runReport(o, out, err), cli::kExitOk) << err.str();
+}
+
 // Files written before the triangles were recorded still read, and report counts the
 // triangles in the space.
 TEST(Savings, OlderResultsWithoutTrianglesStillReport) {
