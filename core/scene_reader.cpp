@@ -182,10 +182,25 @@ bool isDecimalNumber(std::string_view t) {
     return i == t.size();
 }
 
-// Parses `count` finite decimal numbers separated by white space, each within [-maxAbs,
-// maxAbs] (core/limits.h); nothing else may follow.
+// The values an element accepts (core/limits.h), as its messages quote them: [-1e+10, 1e+10]
+// for a position, (0, 100000] for a range.
+struct Accepted {
+    double low = -std::numeric_limits<double>::max();
+    double high = std::numeric_limits<double>::max();
+    bool aboveLow = false;  // the low bound itself is refused
+    // The size beyond which a value is refused where it is parsed. A value within it but
+    // below `low` (a bias of -0.25) is left to the caller, whose message names the light.
+    double bound() const { return std::max(std::abs(low), std::abs(high)); }
+};
+
+Accepted within(double bound) { return {-bound, bound}; }
+Accepted upTo(double high) { return {0.0, high}; }
+Accepted aboveZeroUpTo(double high) { return {0.0, high, true}; }
+
+// Parses `count` finite decimal numbers separated by white space, none larger than
+// `accepted` allows; nothing else may follow.
 Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, double* out, int count,
-                    double maxAbs = std::numeric_limits<double>::max()) {
+                    const Accepted& accepted = {}) {
     std::string text = trim(e->GetText());
     const char* p = text.c_str();
     for (int k = 0; k < count; ++k) {
@@ -208,10 +223,11 @@ Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, doub
                            " is too large to be a number here (more than 1.8e308) in '" + text + "'");
         if (!std::isfinite(out[k]))
             return bad(file, e->GetLineNum(), "<" + std::string(e->Name()) + "> has a non-finite value '" + text + "'");
-        if (std::abs(out[k]) > maxAbs)
+        if (std::abs(out[k]) > accepted.bound())
             return bad(file, e->GetLineNum(),
-                       "<" + std::string(e->Name()) + "> value " + formatNumber(out[k]) + " is outside the accepted range [-" +
-                           formatNumber(maxAbs) + ", " + formatNumber(maxAbs) + "] (docs/format.md, accepted ranges)");
+                       "<" + std::string(e->Name()) + "> value " + formatExact(out[k]) + " is outside the accepted range " +
+                           formatInterval(accepted.low, accepted.high, accepted.aboveLow) +
+                           " (docs/format.md, accepted ranges)");
         p = end;
     }
     while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r') ++p;
@@ -237,17 +253,15 @@ std::optional<std::pair<int, std::string>> repeatedChild(const tinyxml2::XMLElem
     return std::nullopt;
 }
 
-Status parseVec3(const std::string& file, const tinyxml2::XMLElement* e, glm::dvec3& v,
-                 double maxAbs = std::numeric_limits<double>::max()) {
+Status parseVec3(const std::string& file, const tinyxml2::XMLElement* e, glm::dvec3& v, const Accepted& accepted = {}) {
     double d[3];
-    Status s = parseNumbers(file, e, d, 3, maxAbs);
+    Status s = parseNumbers(file, e, d, 3, accepted);
     if (s) v = glm::dvec3(d[0], d[1], d[2]);
     return s;
 }
 
-Status parseDouble(const std::string& file, const tinyxml2::XMLElement* e, double& v,
-                   double maxAbs = std::numeric_limits<double>::max()) {
-    return parseNumbers(file, e, &v, 1, maxAbs);
+Status parseDouble(const std::string& file, const tinyxml2::XMLElement* e, double& v, const Accepted& accepted = {}) {
+    return parseNumbers(file, e, &v, 1, accepted);
 }
 
 Status parseBool(const std::string& file, const tinyxml2::XMLElement* e, bool& v) {
@@ -296,13 +310,13 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
             else if (t == "spot") L.type = LightType::Spot;
             else return bad(file, e->GetLineNum(), "unknown light type '" + t + "' (directional, point or spot)");
         } else if (n == "direction") { s = parseVec3(file, e, L.direction); directionElement = e; }
-        else if (n == "position") { s = parseVec3(file, e, L.position, limits::kMaxWorldCoordinate); hasPosition = true; }
-        else if (n == "range") { s = parseDouble(file, e, L.range, limits::kMaxLength); hasRange = true; rangeElement = e; }
+        else if (n == "position") { s = parseVec3(file, e, L.position, within(limits::kMaxWorldCoordinate)); hasPosition = true; }
+        else if (n == "range") { s = parseDouble(file, e, L.range, aboveZeroUpTo(limits::kMaxLength)); hasRange = true; rangeElement = e; }
         else if (n == "coneAngle") { s = parseDouble(file, e, L.coneHalfAngleDeg); hasCone = true; coneElement = e; }
-        else if (n == "bias") { s = parseDouble(file, e, L.bias, limits::kMaxLength); distances.emplace_back(e, &L.bias); }
-        else if (n == "slopeBias") { s = parseDouble(file, e, L.slopeBias, limits::kMaxLength); distances.emplace_back(e, &L.slopeBias); }
-        else if (n == "filterRadius") { s = parseDouble(file, e, L.filterRadius, limits::kMaxLength); distances.emplace_back(e, &L.filterRadius); }
-        else if (n == "normalBias") { s = parseDouble(file, e, L.normalBias, limits::kMaxLength); distances.emplace_back(e, &L.normalBias); }
+        else if (n == "bias") { s = parseDouble(file, e, L.bias, upTo(limits::kMaxLength)); distances.emplace_back(e, &L.bias); }
+        else if (n == "slopeBias") { s = parseDouble(file, e, L.slopeBias, upTo(limits::kMaxLength)); distances.emplace_back(e, &L.slopeBias); }
+        else if (n == "filterRadius") { s = parseDouble(file, e, L.filterRadius, upTo(limits::kMaxLength)); distances.emplace_back(e, &L.filterRadius); }
+        else if (n == "normalBias") { s = parseDouble(file, e, L.normalBias, upTo(limits::kMaxLength)); distances.emplace_back(e, &L.normalBias); }
         if (!s) return s.error();
     }
     const std::string who = "light '" + L.name + "'";
@@ -325,17 +339,17 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
         if (!hasPosition) return bad(file, L.line, who + " (" + lightTypeName(L.type) + ") needs a <position>");
         if (!hasRange) return bad(file, L.line, who + " (" + lightTypeName(L.type) + ") needs a <range> (metres, > 0)");
         if (!(L.range > 0.0))
-            return bad(file, at(rangeElement), who + ": <range> is " + formatNumber(L.range) + "; it must be more than 0 (metres)");
+            return bad(file, at(rangeElement), who + ": <range> is " + formatExact(L.range) + "; it must be more than 0 (metres)");
     }
     if (L.type == LightType::Spot) {
         if (!hasCone) return bad(file, L.line, who + " (spot) needs a <coneAngle> (half-angle, degrees, in (0, 90])");
         if (!(L.coneHalfAngleDeg > 0.0) || L.coneHalfAngleDeg > 90.0)
-            return bad(file, at(coneElement), who + ": <coneAngle> is " + formatNumber(L.coneHalfAngleDeg) +
+            return bad(file, at(coneElement), who + ": <coneAngle> is " + formatExact(L.coneHalfAngleDeg) +
                                                   "; the half-angle must be more than 0 and at most 90 degrees");
     }
     for (const auto& [e, value] : distances)
         if (*value < 0)
-            return bad(file, e->GetLineNum(), who + ": <" + e->Name() + "> is " + formatNumber(*value) +
+            return bad(file, e->GetLineNum(), who + ": <" + e->Name() + "> is " + formatExact(*value) +
                                                   "; it must not be negative (metres)");
     return L;
 }
@@ -356,12 +370,11 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
         if (n == "chunkSize") {
             s = parseDouble(file, e, st.chunkSize);
             if (s && !(st.chunkSize >= limits::kMinChunkSize && st.chunkSize <= limits::kMaxChunkSize))
-                return bad(file, e->GetLineNum(), "<chunkSize> " + formatNumber(st.chunkSize) + " is outside the accepted range [" +
-                                                      formatNumber(limits::kMinChunkSize) + ", " +
-                                                      formatNumber(limits::kMaxChunkSize) + "] m");
+                return bad(file, e->GetLineNum(), "<chunkSize> " + formatExact(st.chunkSize) + " is outside the accepted range " +
+                                                      formatInterval(limits::kMinChunkSize, limits::kMaxChunkSize) + " m");
         } else if (n == "terrainTolerance") {
-            s = parseDouble(file, e, st.terrainTolerance, limits::kMaxLength);
-            if (s && st.terrainTolerance < 0) return bad(file, e->GetLineNum(), "<terrainTolerance> is " + formatNumber(st.terrainTolerance) +
+            s = parseDouble(file, e, st.terrainTolerance, upTo(limits::kMaxLength));
+            if (s && st.terrainTolerance < 0) return bad(file, e->GetLineNum(), "<terrainTolerance> is " + formatExact(st.terrainTolerance) +
                                                                            "; it must not be negative (metres)");
         } else if (n == "resourceRoot") {
             resourceRoot = trim(e->GetText());
@@ -371,9 +384,9 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
                 if (!t) return Status::ok();
                 char* end = nullptr;
                 long x = std::strtol(t, &end, 10);
-                if (end == t || *end || x < 0 || x > 64)
+                if (end == t || *end || x < 0 || x > limits::kMaxNeighbours)
                     return bad(file, e->GetLineNum(), std::string("<neighbours ") + a + "=\"" + t +
-                                                          "\"> must be a whole number from 0 to 64");
+                                                          "\"> must be a whole number from 0 to " + std::to_string(limits::kMaxNeighbours));
                 v = int(x);
                 return Status::ok();
             };
@@ -385,8 +398,9 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
             if (!trim(e->GetText()).empty()) {
                 double d = 0;
                 s = parseDouble(file, e, d);
-                if (s && (d < 0 || d > 64 || d != std::floor(d)))
-                    return bad(file, e->GetLineNum(), "<neighbours> is " + formatNumber(d) + "; it must be a whole number from 0 to 64");
+                if (s && (d < 0 || d > limits::kMaxNeighbours || d != std::floor(d)))
+                    return bad(file, e->GetLineNum(), "<neighbours> is " + formatExact(d) + "; it must be a whole number from 0 to " +
+                                                          std::to_string(limits::kMaxNeighbours));
                 if (s) st.neighbours = Neighbours{int(d), int(d), int(d), int(d)};
             }
         } else if (n == "light") {
@@ -449,8 +463,8 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
                 for (int r = 0; r < 4; ++r) {
                     const tinyxml2::XMLElement* re = c->FirstChildElement(rowNames[r]);
                     if (!re) { skip(c->GetLineNum(), std::string("<transform> has no <") + rowNames[r] + ">"); continue; }
-                    const double maxAbs = r < 3 ? limits::kMaxLinearEntry : limits::kMaxLocalCoordinate;
-                    if (Status s = parseVec3(path, re, o.transform.rows[size_t(r)], maxAbs); !s)
+                    const Accepted entries = within(r < 3 ? limits::kMaxLinearEntry : limits::kMaxLocalCoordinate);
+                    if (Status s = parseVec3(path, re, o.transform.rows[size_t(r)], entries); !s)
                         skip(re->GetLineNum(), s.error().message);
                 }
                 if (!o.skipped)
@@ -555,10 +569,10 @@ Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkS
     const tinyxml2::XMLElement* mx = root->FirstChildElement("maxHeight");
     if (!he || !mn || !mx) return bad(path, root->GetLineNum(), "<terrain> needs <heights>, <minHeight> and <maxHeight>");
     double minH = 0, maxH = 0;
-    if (Status s = parseDouble(path, mn, minH, limits::kMaxLength); !s) return s.error();
-    if (Status s = parseDouble(path, mx, maxH, limits::kMaxLength); !s) return s.error();
+    if (Status s = parseDouble(path, mn, minH, within(limits::kMaxLength)); !s) return s.error();
+    if (Status s = parseDouble(path, mx, maxH, within(limits::kMaxLength)); !s) return s.error();
     if (maxH < minH)
-        return bad(path, mx->GetLineNum(), "<maxHeight> " + formatNumber(maxH) + " is below <minHeight> " + formatNumber(minH));
+        return bad(path, mx->GetLineNum(), "<maxHeight> " + formatExact(maxH) + " is below <minHeight> " + formatExact(minH));
     const std::string png = (fs::path(path).parent_path() / trim(he->GetText())).string();
 
     Expected<std::string> bytes = readRegularFile(png, "heightmap", ErrorKind::MissingResource, size_t(1) << 30);
