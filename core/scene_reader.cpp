@@ -24,6 +24,7 @@
 #include "core/format.h"
 #include "core/hash.h"
 #include "core/limits.h"
+#include "core/nearest_name.h"
 #include "core/scene.h"
 #include "core/xml_message.h"
 
@@ -253,6 +254,94 @@ std::optional<std::pair<int, std::string>> repeatedChild(const tinyxml2::XMLElem
     return std::nullopt;
 }
 
+// The elements each place holds and the attributes the reader takes
+// (../shared/spec/scene-format.md; <gltfSource> and a light's <gltf> are written by import
+// and read by export).
+const std::vector<std::string> kSpaceElements = {"chunkSize", "neighbours", "terrainTolerance", "resourceRoot", "light",
+                                                 "gltfSource"};
+const std::vector<std::string> kLightElements = {"name",  "type",      "direction",    "position",   "range", "coneAngle",
+                                                 "bias", "slopeBias", "filterRadius", "normalBias", "gltf"};
+const std::vector<std::string> kModelResourceElements = {"visual", "primitiveGroup"};
+const std::vector<std::string> kTerrainResourceElements = {"heights", "minHeight", "maxHeight"};
+const std::vector<std::string> kTransformElements = {"row0", "row1", "row2", "row3"};
+const std::vector<std::string> kNeighboursAttributes = {"left", "right", "top", "bottom"};
+const std::vector<std::string> kPrimitiveGroupAttributes = {"index", "alphaTest", "doubleSided"};
+
+// Another program's data: a namespaced name (<engine:lod>, engine:lod="2") is not the
+// reader's to know, nor a namespace declaration (xmlns, xmlns:engine).
+bool isForeignName(const std::string& name) { return name.find(':') != std::string::npos || name == "xmlns"; }
+
+// An element or attribute the reader does not know, with its line and a message naming the
+// nearest known name.
+struct UnknownName {
+    int line = 0;
+    std::string message;
+    bool misspelt = false;  // near enough to a known name to be a misspelling of it
+};
+
+// `given`, one of `known` or not, as a message writes it: <filterRadius>, or alphaTest=.
+std::string spelt(const std::string& name, bool attribute) { return attribute ? name + "=" : "<" + name + ">"; }
+
+// The message for `given` (an element in <parent>, or an attribute of it), unknown there:
+// "did you mean <filterRadius>?" for a misspelling, else what <parent> holds.
+UnknownName unknownName(const std::string& given, const tinyxml2::XMLElement* parent, int line,
+                        const std::vector<std::string>& known, bool attribute) {
+    const std::string nearest = nearestName(given, known);
+    const bool misspelt = looksLikeMisspelling(given, nearest);
+    const std::string where = "<" + std::string(parent->Name()) + ">";
+    std::string hint = "did you mean " + spelt(nearest, attribute) + "?";
+    if (!misspelt) {
+        std::string list;
+        for (const std::string& k : known)
+            list += (list.empty() ? "" : &k == &known.back() ? " and " : ", ") + spelt(k, attribute);
+        hint = where + (attribute ? " takes " : " holds ") + list + "; another program's data may go in a namespaced " +
+               (attribute ? "attribute" : "element") + ", e.g. " + spelt("engine:" + given, attribute);
+    }
+    const std::string what = attribute ? "unknown attribute " + spelt(given, true) + " of "
+                                       : "unknown element " + spelt(given, false) + " in ";
+    return {line, what + where + " (" + hint + ")", misspelt};
+}
+
+// Each child element of `parent` that is none of `known` and not another program's.
+std::vector<UnknownName> unknownChildren(const tinyxml2::XMLElement* parent, const std::vector<std::string>& known) {
+    std::vector<UnknownName> unknown;
+    for (const tinyxml2::XMLElement* c = parent->FirstChildElement(); c; c = c->NextSiblingElement())
+        if (const std::string n = c->Name(); !isForeignName(n) && std::find(known.begin(), known.end(), n) == known.end())
+            unknown.push_back(unknownName(n, parent, c->GetLineNum(), known, false));
+    return unknown;
+}
+
+// Each attribute of `e` that is none of `known` and not another program's.
+std::vector<UnknownName> unknownAttributes(const tinyxml2::XMLElement* e, const std::vector<std::string>& known) {
+    std::vector<UnknownName> unknown;
+    for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next())
+        if (const std::string n = a->Name(); !isForeignName(n) && std::find(known.begin(), known.end(), n) == known.end())
+            unknown.push_back(unknownName(n, e, e->GetLineNum(), known, true));
+    return unknown;
+}
+
+// space.xml is refused at its first unknown name: one ignored there is a setting baked as
+// its default (a misspelt <filterRadius> leaves the filter at 0 and culls shadows the
+// engine's filter draws), a light left out (every later light's bit shifts) or a grid of
+// the wrong size.
+Status refuseUnknown(const std::string& file, const std::vector<UnknownName>& unknown) {
+    if (unknown.empty()) return Status::ok();
+    return bad(file, unknown.front().line,
+               unknown.front().message + "; the bake stops rather than ignore it (docs/format.md, \"Unknown elements\")");
+}
+
+// In a resource, a misspelt name is an error of the resource (its objects are skipped): a
+// lost <primitiveGroup alphaTest="true"> bakes the leaves opaque. Any other unknown name is
+// a warning (exit 1) and ignored: what a resource needs is looked up by name, so an extra
+// element or attribute cannot change what is baked.
+Status checkResourceNames(const std::string& file, const std::vector<UnknownName>& unknown, std::vector<Diagnostic>* warnings) {
+    for (const UnknownName& u : unknown) {
+        if (u.misspelt) return bad(file, u.line, u.message);
+        if (warnings) warnings->push_back({file, u.line, u.message + "; ignored"});
+    }
+    return Status::ok();
+}
+
 Status parseVec3(const std::string& file, const tinyxml2::XMLElement* e, glm::dvec3& v, const Accepted& accepted = {}) {
     double d[3];
     Status s = parseNumbers(file, e, d, 3, accepted);
@@ -298,6 +387,7 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
     const tinyxml2::XMLElement *directionElement = nullptr, *rangeElement = nullptr, *coneElement = nullptr;
     std::vector<std::pair<const tinyxml2::XMLElement*, double*>> distances;  // bias, slopeBias, filterRadius, normalBias
     if (auto again = repeatedChild(le)) return bad(file, again->first, again->second);
+    if (Status s = refuseUnknown(file, unknownChildren(le, kLightElements)); !s) return s.error();
     for (const tinyxml2::XMLElement* e = le->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
         Status s;
@@ -364,6 +454,7 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
     if (Status s = loadXml(file, doc, "space.xml", ErrorKind::BadInput); !s) return s.error();
     std::string resourceRoot;
     if (auto again = repeatedChild(doc.RootElement(), {"light"})) return bad(file, again->first, again->second);
+    if (Status s = refuseUnknown(file, unknownChildren(doc.RootElement(), kSpaceElements)); !s) return s.error();
     for (const tinyxml2::XMLElement* e = doc.RootElement()->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
         Status s;
@@ -390,6 +481,7 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
                 v = int(x);
                 return Status::ok();
             };
+            if (Status us = refuseUnknown(file, unknownAttributes(e, kNeighboursAttributes)); !us) return us.error();
             if (e->FirstAttribute()) {
                 for (auto [a, v] : {std::pair<const char*, int*>{"left", &st.neighbours.left}, {"right", &st.neighbours.right},
                                     {"top", &st.neighbours.top}, {"bottom", &st.neighbours.bottom}})
@@ -459,6 +551,9 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
             } else if (cn == "transform" && o.kind == ChunkObject::Kind::Model) {
                 seenTransform = true;
                 if (auto again = repeatedChild(c)) skip(again->first, again->second);
+                // The rows are the placement; anything else in it (a <scale>?) may be part of
+                // the engine's, which the bake would not know.
+                for (const UnknownName& u : unknownChildren(c, kTransformElements)) skip(u.line, u.message);
                 const char* rowNames[4] = {"row0", "row1", "row2", "row3"};
                 for (int r = 0; r < 4; ++r) {
                     const tinyxml2::XMLElement* re = c->FirstChildElement(rowNames[r]);
@@ -480,7 +575,7 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
     return cf;
 }
 
-Expected<Mesh> loadModelResource(const std::string& path) {
+Expected<Mesh> loadModelResource(const std::string& path, std::vector<Diagnostic>* warnings) {
     std::string ext = fs::path(path).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     // A group whose alpha the mesh file leaves unknown fails the model, unless a .model
@@ -500,6 +595,7 @@ Expected<Mesh> loadModelResource(const std::string& path) {
     if (Status s = loadXml(path, doc, "model resource"); !s) return s.error();
     const tinyxml2::XMLElement* root = doc.RootElement();
     if (auto again = repeatedChild(root, {"primitiveGroup"})) return bad(path, again->first, again->second);
+    if (Status s = checkResourceNames(path, unknownChildren(root, kModelResourceElements), warnings); !s) return s.error();
     const tinyxml2::XMLElement* visual = root->FirstChildElement("visual");
     if (!visual || trim(visual->GetText()).empty()) return bad(path, root->GetLineNum(), "<model> has no <visual>");
     std::string meshPath = (fs::path(path).parent_path() / trim(visual->GetText())).string();
@@ -507,6 +603,7 @@ Expected<Mesh> loadModelResource(const std::string& path) {
     if (!mesh) return mesh.error();
     for (const tinyxml2::XMLElement* g = root->FirstChildElement("primitiveGroup"); g;
          g = g->NextSiblingElement("primitiveGroup")) {
+        if (Status s = checkResourceNames(path, unknownAttributes(g, kPrimitiveGroupAttributes), warnings); !s) return s.error();
         int index = -1;
         if (g->QueryIntAttribute("index", &index) != tinyxml2::XML_SUCCESS || index < 0)
             return bad(path, g->GetLineNum(),
@@ -559,11 +656,12 @@ struct PngReader {
 
 }  // namespace
 
-Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkSize) {
+Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkSize, std::vector<Diagnostic>* warnings) {
     tinyxml2::XMLDocument doc;
     if (Status s = loadXml(path, doc, "terrain resource"); !s) return s.error();
     const tinyxml2::XMLElement* root = doc.RootElement();
     if (auto again = repeatedChild(root)) return bad(path, again->first, again->second);
+    if (Status s = checkResourceNames(path, unknownChildren(root, kTerrainResourceElements), warnings); !s) return s.error();
     const tinyxml2::XMLElement* he = root->FirstChildElement("heights");
     const tinyxml2::XMLElement* mn = root->FirstChildElement("minHeight");
     const tinyxml2::XMLElement* mx = root->FirstChildElement("maxHeight");
