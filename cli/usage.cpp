@@ -11,6 +11,7 @@
 #include <tinyxml2.h>
 
 #include "core/format.h"
+#include "core/nearest_name.h"
 #include "core/png_write.h"
 #include "gpu/gl_context.h"
 
@@ -131,8 +132,8 @@ CLI::Validator existingPath() {
 const char* const kBakeExitCodes =
     "Exit codes: 0 baked; 1 baked, but some input was skipped or a chunk file not written (warnings name file\n"
     "and line); 2 usage error; 3 bad input (stopped, nothing written); 4 I/O error; 5 internal error (Embree,\n"
-    "CGAL, OpenGL); 6 another bake holds the output directory's lock; 130 interrupted (Ctrl-C or SIGTERM: the\n"
-    "bake's temporary files removed, no chunk file changed unless --resume had committed some).\n";
+    "CGAL, OpenGL); 6 another bake holds the output directory's lock; 130 interrupted by Ctrl-C, 143 by SIGTERM\n"
+    "(the bake's temporary files removed, no chunk file changed unless --resume had committed some).\n";
 const char* const kCheckExitCodes =
     "Exit codes: 0 no GPU false cull; 1 the GPU method culled a bit that has a witness; 2 usage error; 3 bad\n"
     "input; 4 a picture cannot be written; 5 no OpenGL context, or a library failed.\n";
@@ -162,6 +163,29 @@ const char* const kTopFooter =
     "Run 'shadowcull COMMAND --help' for a command's options, defaults and exit codes. Exit code 2 is a usage\n"
     "error for every command. Documentation: docs/cli.md, docs/format.md.\n";
 
+namespace {
+
+// "no command given (bake, sweep, ...)", or for `shadowcull frobnicate` "unknown command
+// 'frobnicate' (did you mean ...?)": CLI11 says "A subcommand is required" of both.
+std::string missingCommand(const CLI::App* app) {
+    std::vector<std::string> commands;
+    for (const CLI::App* sub : app->get_subcommands({})) commands.push_back(sub->get_name());
+    std::string list;
+    for (size_t k = 0; k < commands.size(); ++k)
+        list += (k == 0 ? "" : k + 1 == commands.size() ? " or " : ", ") + commands[k];
+    // A word CLI11 could not place (not an option) is the command the user meant.
+    for (const std::string& word : app->remaining(false)) {
+        if (word.empty() || word[0] == '-') continue;
+        const std::string nearest = nearestName(word, commands);
+        const std::string hint = looksLikeMisspelling(word, nearest) ? "did you mean '" + nearest + "'?"
+                                                                     : "the nearest is '" + nearest + "'";
+        return "unknown command '" + word + "' (" + hint + "); the commands are " + list;
+    }
+    return "no command given (" + list + ")";
+}
+
+}  // namespace
+
 std::string formatParseFailure(const CLI::App* app, const CLI::Error& e) {
     // The command whose options were being read, for "shadowcull bake --help".
     std::string command = "shadowcull";
@@ -171,8 +195,7 @@ std::string formatParseFailure(const CLI::App* app, const CLI::Error& e) {
     }
     // CLI11's own wording where no validator of ours speaks first.
     std::string what = e.what();
-    if (what == "A subcommand is required")
-        what = "no command given (bake, sweep, diff, explain, check, render, preview, import, export, report or merge)";
+    if (what == "A subcommand is required") what = missingCommand(app);
     const std::string convert = "Could not convert: ";
     if (what.rfind(convert, 0) == 0)
         if (const size_t eq = what.find(" = ", convert.size()); eq != std::string::npos)

@@ -32,5 +32,7 @@ constexpr double kMaxLength = 1e5;
 // Metres: light positions are world coordinates; the chunk grid (16-bit indices times
 // kMaxChunkSize) spans 3.3e9 m.
 constexpr double kMaxWorldCoordinate = 1e10;
+// Chunks on each side of the window of bake --method gpu (space.xml <neighbours>).
+constexpr int kMaxNeighbours = 64;
 
 }  // namespace shadowcull::limits

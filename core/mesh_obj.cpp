@@ -126,8 +126,8 @@ double parseNumber(std::string_view tok, int line, double maxAbs = std::numeric_
     if (ec == std::errc::result_out_of_range) v = std::strtod(std::string(s).c_str(), nullptr);  // underflow is fine
     if (!std::isfinite(v)) fail(line, "non-finite number " + quoted(tok));
     if (std::abs(v) > maxAbs)
-        fail(line, "number " + quoted(tok) + " is outside the accepted range [-" + formatNumber(maxAbs) + ", " +
-                       formatNumber(maxAbs) + "] (docs/format.md, accepted ranges)");
+        fail(line, "number " + quoted(tok) + " is outside the accepted range " + formatInterval(-maxAbs, maxAbs) +
+                       " (docs/format.md, accepted ranges)");
     return v;
 }
 

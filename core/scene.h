@@ -161,11 +161,14 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
 Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std::vector<Diagnostic>& diagnostics);
 
 // Loads a model resource: a .model XML (visual mesh + primitiveGroup overrides) or a mesh
-// file named directly. Errors name the file and line.
-Expected<Mesh> loadModelResource(const std::string& path);
+// file named directly. Errors name the file and line. `warnings` gets what was ignored (an
+// unknown element that is not a misspelling: docs/format.md).
+Expected<Mesh> loadModelResource(const std::string& path, std::vector<Diagnostic>* warnings = nullptr);
 
 // Loads a .terrain file and its 16-bit grey PNG. 8-bit, non-square or N < 2 maps are errors.
-Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkSize);
+// `warnings` as for loadModelResource.
+Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkSize,
+                                          std::vector<Diagnostic>* warnings = nullptr);
 
 // Reads space.xml and every chunk file of the space (or only those in `only` plus their
 // neighbours), loading each resource once. Files named *.chunk that are not valid chunk

@@ -24,6 +24,7 @@
 #include "core/format.h"
 #include "core/hash.h"
 #include "core/limits.h"
+#include "core/nearest_name.h"
 #include "core/scene.h"
 #include "core/xml_message.h"
 
@@ -182,10 +183,25 @@ bool isDecimalNumber(std::string_view t) {
     return i == t.size();
 }
 
-// Parses `count` finite decimal numbers separated by white space, each within [-maxAbs,
-// maxAbs] (core/limits.h); nothing else may follow.
+// The values an element accepts (core/limits.h), as its messages quote them: [-1e+10, 1e+10]
+// for a position, (0, 100000] for a range.
+struct Accepted {
+    double low = -std::numeric_limits<double>::max();
+    double high = std::numeric_limits<double>::max();
+    bool aboveLow = false;  // the low bound itself is refused
+    // The size beyond which a value is refused where it is parsed. A value within it but
+    // below `low` (a bias of -0.25) is left to the caller, whose message names the light.
+    double bound() const { return std::max(std::abs(low), std::abs(high)); }
+};
+
+Accepted within(double bound) { return {-bound, bound}; }
+Accepted upTo(double high) { return {0.0, high}; }
+Accepted aboveZeroUpTo(double high) { return {0.0, high, true}; }
+
+// Parses `count` finite decimal numbers separated by white space, none larger than
+// `accepted` allows; nothing else may follow.
 Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, double* out, int count,
-                    double maxAbs = std::numeric_limits<double>::max()) {
+                    const Accepted& accepted = {}) {
     std::string text = trim(e->GetText());
     const char* p = text.c_str();
     for (int k = 0; k < count; ++k) {
@@ -208,10 +224,11 @@ Status parseNumbers(const std::string& file, const tinyxml2::XMLElement* e, doub
                            " is too large to be a number here (more than 1.8e308) in '" + text + "'");
         if (!std::isfinite(out[k]))
             return bad(file, e->GetLineNum(), "<" + std::string(e->Name()) + "> has a non-finite value '" + text + "'");
-        if (std::abs(out[k]) > maxAbs)
+        if (std::abs(out[k]) > accepted.bound())
             return bad(file, e->GetLineNum(),
-                       "<" + std::string(e->Name()) + "> value " + formatNumber(out[k]) + " is outside the accepted range [-" +
-                           formatNumber(maxAbs) + ", " + formatNumber(maxAbs) + "] (docs/format.md, accepted ranges)");
+                       "<" + std::string(e->Name()) + "> value " + formatExact(out[k]) + " is outside the accepted range " +
+                           formatInterval(accepted.low, accepted.high, accepted.aboveLow) +
+                           " (docs/format.md, accepted ranges)");
         p = end;
     }
     while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r') ++p;
@@ -237,17 +254,103 @@ std::optional<std::pair<int, std::string>> repeatedChild(const tinyxml2::XMLElem
     return std::nullopt;
 }
 
-Status parseVec3(const std::string& file, const tinyxml2::XMLElement* e, glm::dvec3& v,
-                 double maxAbs = std::numeric_limits<double>::max()) {
+// The elements each place holds and the attributes the reader takes
+// (../shared/spec/scene-format.md; <gltfSource> and a light's <gltf> are written by import
+// and read by export).
+const std::vector<std::string> kSpaceElements = {"chunkSize", "neighbours", "terrainTolerance", "resourceRoot", "light",
+                                                 "gltfSource"};
+const std::vector<std::string> kLightElements = {"name",  "type",      "direction",    "position",   "range", "coneAngle",
+                                                 "bias", "slopeBias", "filterRadius", "normalBias", "gltf"};
+const std::vector<std::string> kModelResourceElements = {"visual", "primitiveGroup"};
+const std::vector<std::string> kTerrainResourceElements = {"heights", "minHeight", "maxHeight"};
+const std::vector<std::string> kTransformElements = {"row0", "row1", "row2", "row3"};
+const std::vector<std::string> kNeighboursAttributes = {"left", "right", "top", "bottom"};
+const std::vector<std::string> kPrimitiveGroupAttributes = {"index", "alphaTest", "doubleSided"};
+
+// Another program's data: a namespaced name (<engine:lod>, engine:lod="2") is not the
+// reader's to know, nor a namespace declaration (xmlns, xmlns:engine).
+bool isForeignName(const std::string& name) { return name.find(':') != std::string::npos || name == "xmlns"; }
+
+// An element or attribute the reader does not know, with its line and a message naming the
+// nearest known name.
+struct UnknownName {
+    int line = 0;
+    std::string message;
+    bool misspelt = false;  // near enough to a known name to be a misspelling of it
+};
+
+// `given`, one of `known` or not, as a message writes it: <filterRadius>, or alphaTest=.
+std::string spelt(const std::string& name, bool attribute) { return attribute ? name + "=" : "<" + name + ">"; }
+
+// The message for `given` (an element in <parent>, or an attribute of it), unknown there:
+// "did you mean <filterRadius>?" for a misspelling, else what <parent> holds.
+UnknownName unknownName(const std::string& given, const tinyxml2::XMLElement* parent, int line,
+                        const std::vector<std::string>& known, bool attribute) {
+    const std::string nearest = nearestName(given, known);
+    const bool misspelt = looksLikeMisspelling(given, nearest);
+    const std::string where = "<" + std::string(parent->Name()) + ">";
+    std::string hint = "did you mean " + spelt(nearest, attribute) + "?";
+    if (!misspelt) {
+        std::string list;
+        for (const std::string& k : known)
+            list += (list.empty() ? "" : &k == &known.back() ? " and " : ", ") + spelt(k, attribute);
+        hint = where + (attribute ? " takes " : " holds ") + list + "; another program's data may go in a namespaced " +
+               (attribute ? "attribute" : "element") + ", e.g. " + spelt("engine:" + given, attribute);
+    }
+    const std::string what = attribute ? "unknown attribute " + spelt(given, true) + " of "
+                                       : "unknown element " + spelt(given, false) + " in ";
+    return {line, what + where + " (" + hint + ")", misspelt};
+}
+
+// Each child element of `parent` that is none of `known` and not another program's.
+std::vector<UnknownName> unknownChildren(const tinyxml2::XMLElement* parent, const std::vector<std::string>& known) {
+    std::vector<UnknownName> unknown;
+    for (const tinyxml2::XMLElement* c = parent->FirstChildElement(); c; c = c->NextSiblingElement())
+        if (const std::string n = c->Name(); !isForeignName(n) && std::find(known.begin(), known.end(), n) == known.end())
+            unknown.push_back(unknownName(n, parent, c->GetLineNum(), known, false));
+    return unknown;
+}
+
+// Each attribute of `e` that is none of `known` and not another program's.
+std::vector<UnknownName> unknownAttributes(const tinyxml2::XMLElement* e, const std::vector<std::string>& known) {
+    std::vector<UnknownName> unknown;
+    for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next())
+        if (const std::string n = a->Name(); !isForeignName(n) && std::find(known.begin(), known.end(), n) == known.end())
+            unknown.push_back(unknownName(n, e, e->GetLineNum(), known, true));
+    return unknown;
+}
+
+// space.xml is refused at its first unknown name: one ignored there is a setting baked as
+// its default (a misspelt <filterRadius> leaves the filter at 0 and culls shadows the
+// engine's filter draws), a light left out (every later light's bit shifts) or a grid of
+// the wrong size.
+Status refuseUnknown(const std::string& file, const std::vector<UnknownName>& unknown) {
+    if (unknown.empty()) return Status::ok();
+    return bad(file, unknown.front().line,
+               unknown.front().message + "; the bake stops rather than ignore it (docs/format.md, \"Unknown elements\")");
+}
+
+// In a resource, a misspelt name is an error of the resource (its objects are skipped): a
+// lost <primitiveGroup alphaTest="true"> bakes the leaves opaque. Any other unknown name is
+// a warning (exit 1) and ignored: what a resource needs is looked up by name, so an extra
+// element or attribute cannot change what is baked.
+Status checkResourceNames(const std::string& file, const std::vector<UnknownName>& unknown, std::vector<Diagnostic>* warnings) {
+    for (const UnknownName& u : unknown) {
+        if (u.misspelt) return bad(file, u.line, u.message);
+        if (warnings) warnings->push_back({file, u.line, u.message + "; ignored"});
+    }
+    return Status::ok();
+}
+
+Status parseVec3(const std::string& file, const tinyxml2::XMLElement* e, glm::dvec3& v, const Accepted& accepted = {}) {
     double d[3];
-    Status s = parseNumbers(file, e, d, 3, maxAbs);
+    Status s = parseNumbers(file, e, d, 3, accepted);
     if (s) v = glm::dvec3(d[0], d[1], d[2]);
     return s;
 }
 
-Status parseDouble(const std::string& file, const tinyxml2::XMLElement* e, double& v,
-                   double maxAbs = std::numeric_limits<double>::max()) {
-    return parseNumbers(file, e, &v, 1, maxAbs);
+Status parseDouble(const std::string& file, const tinyxml2::XMLElement* e, double& v, const Accepted& accepted = {}) {
+    return parseNumbers(file, e, &v, 1, accepted);
 }
 
 Status parseBool(const std::string& file, const tinyxml2::XMLElement* e, bool& v) {
@@ -284,6 +387,7 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
     const tinyxml2::XMLElement *directionElement = nullptr, *rangeElement = nullptr, *coneElement = nullptr;
     std::vector<std::pair<const tinyxml2::XMLElement*, double*>> distances;  // bias, slopeBias, filterRadius, normalBias
     if (auto again = repeatedChild(le)) return bad(file, again->first, again->second);
+    if (Status s = refuseUnknown(file, unknownChildren(le, kLightElements)); !s) return s.error();
     for (const tinyxml2::XMLElement* e = le->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
         Status s;
@@ -296,13 +400,13 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
             else if (t == "spot") L.type = LightType::Spot;
             else return bad(file, e->GetLineNum(), "unknown light type '" + t + "' (directional, point or spot)");
         } else if (n == "direction") { s = parseVec3(file, e, L.direction); directionElement = e; }
-        else if (n == "position") { s = parseVec3(file, e, L.position, limits::kMaxWorldCoordinate); hasPosition = true; }
-        else if (n == "range") { s = parseDouble(file, e, L.range, limits::kMaxLength); hasRange = true; rangeElement = e; }
+        else if (n == "position") { s = parseVec3(file, e, L.position, within(limits::kMaxWorldCoordinate)); hasPosition = true; }
+        else if (n == "range") { s = parseDouble(file, e, L.range, aboveZeroUpTo(limits::kMaxLength)); hasRange = true; rangeElement = e; }
         else if (n == "coneAngle") { s = parseDouble(file, e, L.coneHalfAngleDeg); hasCone = true; coneElement = e; }
-        else if (n == "bias") { s = parseDouble(file, e, L.bias, limits::kMaxLength); distances.emplace_back(e, &L.bias); }
-        else if (n == "slopeBias") { s = parseDouble(file, e, L.slopeBias, limits::kMaxLength); distances.emplace_back(e, &L.slopeBias); }
-        else if (n == "filterRadius") { s = parseDouble(file, e, L.filterRadius, limits::kMaxLength); distances.emplace_back(e, &L.filterRadius); }
-        else if (n == "normalBias") { s = parseDouble(file, e, L.normalBias, limits::kMaxLength); distances.emplace_back(e, &L.normalBias); }
+        else if (n == "bias") { s = parseDouble(file, e, L.bias, upTo(limits::kMaxLength)); distances.emplace_back(e, &L.bias); }
+        else if (n == "slopeBias") { s = parseDouble(file, e, L.slopeBias, upTo(limits::kMaxLength)); distances.emplace_back(e, &L.slopeBias); }
+        else if (n == "filterRadius") { s = parseDouble(file, e, L.filterRadius, upTo(limits::kMaxLength)); distances.emplace_back(e, &L.filterRadius); }
+        else if (n == "normalBias") { s = parseDouble(file, e, L.normalBias, upTo(limits::kMaxLength)); distances.emplace_back(e, &L.normalBias); }
         if (!s) return s.error();
     }
     const std::string who = "light '" + L.name + "'";
@@ -325,17 +429,17 @@ Expected<Light> readLight(const std::string& file, const tinyxml2::XMLElement* l
         if (!hasPosition) return bad(file, L.line, who + " (" + lightTypeName(L.type) + ") needs a <position>");
         if (!hasRange) return bad(file, L.line, who + " (" + lightTypeName(L.type) + ") needs a <range> (metres, > 0)");
         if (!(L.range > 0.0))
-            return bad(file, at(rangeElement), who + ": <range> is " + formatNumber(L.range) + "; it must be more than 0 (metres)");
+            return bad(file, at(rangeElement), who + ": <range> is " + formatExact(L.range) + "; it must be more than 0 (metres)");
     }
     if (L.type == LightType::Spot) {
         if (!hasCone) return bad(file, L.line, who + " (spot) needs a <coneAngle> (half-angle, degrees, in (0, 90])");
         if (!(L.coneHalfAngleDeg > 0.0) || L.coneHalfAngleDeg > 90.0)
-            return bad(file, at(coneElement), who + ": <coneAngle> is " + formatNumber(L.coneHalfAngleDeg) +
+            return bad(file, at(coneElement), who + ": <coneAngle> is " + formatExact(L.coneHalfAngleDeg) +
                                                   "; the half-angle must be more than 0 and at most 90 degrees");
     }
     for (const auto& [e, value] : distances)
         if (*value < 0)
-            return bad(file, e->GetLineNum(), who + ": <" + e->Name() + "> is " + formatNumber(*value) +
+            return bad(file, e->GetLineNum(), who + ": <" + e->Name() + "> is " + formatExact(*value) +
                                                   "; it must not be negative (metres)");
     return L;
 }
@@ -350,18 +454,18 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
     if (Status s = loadXml(file, doc, "space.xml", ErrorKind::BadInput); !s) return s.error();
     std::string resourceRoot;
     if (auto again = repeatedChild(doc.RootElement(), {"light"})) return bad(file, again->first, again->second);
+    if (Status s = refuseUnknown(file, unknownChildren(doc.RootElement(), kSpaceElements)); !s) return s.error();
     for (const tinyxml2::XMLElement* e = doc.RootElement()->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();
         Status s;
         if (n == "chunkSize") {
             s = parseDouble(file, e, st.chunkSize);
             if (s && !(st.chunkSize >= limits::kMinChunkSize && st.chunkSize <= limits::kMaxChunkSize))
-                return bad(file, e->GetLineNum(), "<chunkSize> " + formatNumber(st.chunkSize) + " is outside the accepted range [" +
-                                                      formatNumber(limits::kMinChunkSize) + ", " +
-                                                      formatNumber(limits::kMaxChunkSize) + "] m");
+                return bad(file, e->GetLineNum(), "<chunkSize> " + formatExact(st.chunkSize) + " is outside the accepted range " +
+                                                      formatInterval(limits::kMinChunkSize, limits::kMaxChunkSize) + " m");
         } else if (n == "terrainTolerance") {
-            s = parseDouble(file, e, st.terrainTolerance, limits::kMaxLength);
-            if (s && st.terrainTolerance < 0) return bad(file, e->GetLineNum(), "<terrainTolerance> is " + formatNumber(st.terrainTolerance) +
+            s = parseDouble(file, e, st.terrainTolerance, upTo(limits::kMaxLength));
+            if (s && st.terrainTolerance < 0) return bad(file, e->GetLineNum(), "<terrainTolerance> is " + formatExact(st.terrainTolerance) +
                                                                            "; it must not be negative (metres)");
         } else if (n == "resourceRoot") {
             resourceRoot = trim(e->GetText());
@@ -371,12 +475,13 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
                 if (!t) return Status::ok();
                 char* end = nullptr;
                 long x = std::strtol(t, &end, 10);
-                if (end == t || *end || x < 0 || x > 64)
+                if (end == t || *end || x < 0 || x > limits::kMaxNeighbours)
                     return bad(file, e->GetLineNum(), std::string("<neighbours ") + a + "=\"" + t +
-                                                          "\"> must be a whole number from 0 to 64");
+                                                          "\"> must be a whole number from 0 to " + std::to_string(limits::kMaxNeighbours));
                 v = int(x);
                 return Status::ok();
             };
+            if (Status us = refuseUnknown(file, unknownAttributes(e, kNeighboursAttributes)); !us) return us.error();
             if (e->FirstAttribute()) {
                 for (auto [a, v] : {std::pair<const char*, int*>{"left", &st.neighbours.left}, {"right", &st.neighbours.right},
                                     {"top", &st.neighbours.top}, {"bottom", &st.neighbours.bottom}})
@@ -385,8 +490,9 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
             if (!trim(e->GetText()).empty()) {
                 double d = 0;
                 s = parseDouble(file, e, d);
-                if (s && (d < 0 || d > 64 || d != std::floor(d)))
-                    return bad(file, e->GetLineNum(), "<neighbours> is " + formatNumber(d) + "; it must be a whole number from 0 to 64");
+                if (s && (d < 0 || d > limits::kMaxNeighbours || d != std::floor(d)))
+                    return bad(file, e->GetLineNum(), "<neighbours> is " + formatExact(d) + "; it must be a whole number from 0 to " +
+                                                          std::to_string(limits::kMaxNeighbours));
                 if (s) st.neighbours = Neighbours{int(d), int(d), int(d), int(d)};
             }
         } else if (n == "light") {
@@ -445,12 +551,15 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
             } else if (cn == "transform" && o.kind == ChunkObject::Kind::Model) {
                 seenTransform = true;
                 if (auto again = repeatedChild(c)) skip(again->first, again->second);
+                // The rows are the placement; anything else in it (a <scale>?) may be part of
+                // the engine's, which the bake would not know.
+                for (const UnknownName& u : unknownChildren(c, kTransformElements)) skip(u.line, u.message);
                 const char* rowNames[4] = {"row0", "row1", "row2", "row3"};
                 for (int r = 0; r < 4; ++r) {
                     const tinyxml2::XMLElement* re = c->FirstChildElement(rowNames[r]);
                     if (!re) { skip(c->GetLineNum(), std::string("<transform> has no <") + rowNames[r] + ">"); continue; }
-                    const double maxAbs = r < 3 ? limits::kMaxLinearEntry : limits::kMaxLocalCoordinate;
-                    if (Status s = parseVec3(path, re, o.transform.rows[size_t(r)], maxAbs); !s)
+                    const Accepted entries = within(r < 3 ? limits::kMaxLinearEntry : limits::kMaxLocalCoordinate);
+                    if (Status s = parseVec3(path, re, o.transform.rows[size_t(r)], entries); !s)
                         skip(re->GetLineNum(), s.error().message);
                 }
                 if (!o.skipped)
@@ -466,7 +575,7 @@ Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std
     return cf;
 }
 
-Expected<Mesh> loadModelResource(const std::string& path) {
+Expected<Mesh> loadModelResource(const std::string& path, std::vector<Diagnostic>* warnings) {
     std::string ext = fs::path(path).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     // A group whose alpha the mesh file leaves unknown fails the model, unless a .model
@@ -486,6 +595,7 @@ Expected<Mesh> loadModelResource(const std::string& path) {
     if (Status s = loadXml(path, doc, "model resource"); !s) return s.error();
     const tinyxml2::XMLElement* root = doc.RootElement();
     if (auto again = repeatedChild(root, {"primitiveGroup"})) return bad(path, again->first, again->second);
+    if (Status s = checkResourceNames(path, unknownChildren(root, kModelResourceElements), warnings); !s) return s.error();
     const tinyxml2::XMLElement* visual = root->FirstChildElement("visual");
     if (!visual || trim(visual->GetText()).empty()) return bad(path, root->GetLineNum(), "<model> has no <visual>");
     std::string meshPath = (fs::path(path).parent_path() / trim(visual->GetText())).string();
@@ -493,6 +603,7 @@ Expected<Mesh> loadModelResource(const std::string& path) {
     if (!mesh) return mesh.error();
     for (const tinyxml2::XMLElement* g = root->FirstChildElement("primitiveGroup"); g;
          g = g->NextSiblingElement("primitiveGroup")) {
+        if (Status s = checkResourceNames(path, unknownAttributes(g, kPrimitiveGroupAttributes), warnings); !s) return s.error();
         int index = -1;
         if (g->QueryIntAttribute("index", &index) != tinyxml2::XML_SUCCESS || index < 0)
             return bad(path, g->GetLineNum(),
@@ -545,20 +656,21 @@ struct PngReader {
 
 }  // namespace
 
-Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkSize) {
+Expected<Heightfield> loadTerrainResource(const std::string& path, double chunkSize, std::vector<Diagnostic>* warnings) {
     tinyxml2::XMLDocument doc;
     if (Status s = loadXml(path, doc, "terrain resource"); !s) return s.error();
     const tinyxml2::XMLElement* root = doc.RootElement();
     if (auto again = repeatedChild(root)) return bad(path, again->first, again->second);
+    if (Status s = checkResourceNames(path, unknownChildren(root, kTerrainResourceElements), warnings); !s) return s.error();
     const tinyxml2::XMLElement* he = root->FirstChildElement("heights");
     const tinyxml2::XMLElement* mn = root->FirstChildElement("minHeight");
     const tinyxml2::XMLElement* mx = root->FirstChildElement("maxHeight");
     if (!he || !mn || !mx) return bad(path, root->GetLineNum(), "<terrain> needs <heights>, <minHeight> and <maxHeight>");
     double minH = 0, maxH = 0;
-    if (Status s = parseDouble(path, mn, minH, limits::kMaxLength); !s) return s.error();
-    if (Status s = parseDouble(path, mx, maxH, limits::kMaxLength); !s) return s.error();
+    if (Status s = parseDouble(path, mn, minH, within(limits::kMaxLength)); !s) return s.error();
+    if (Status s = parseDouble(path, mx, maxH, within(limits::kMaxLength)); !s) return s.error();
     if (maxH < minH)
-        return bad(path, mx->GetLineNum(), "<maxHeight> " + formatNumber(maxH) + " is below <minHeight> " + formatNumber(minH));
+        return bad(path, mx->GetLineNum(), "<maxHeight> " + formatExact(maxH) + " is below <minHeight> " + formatExact(minH));
     const std::string png = (fs::path(path).parent_path() / trim(he->GetText())).string();
 
     Expected<std::string> bytes = readRegularFile(png, "heightmap", ErrorKind::MissingResource, size_t(1) << 30);

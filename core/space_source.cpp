@@ -139,6 +139,7 @@ Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>&
         std::shared_ptr<const Mesh> mesh;
         std::shared_ptr<const Heightfield> terrain;
         std::optional<Error> error;
+        std::vector<Diagnostic> warnings;  // what the resource's reader ignored
         ResourceSummary summary;
     };
     std::vector<FirstUse> firstUses;
@@ -148,7 +149,7 @@ Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>&
         std::string key = keyOf(o);
         if (resources_.count(key) || firstUseOf.count(key)) continue;
         firstUseOf.emplace(key, firstUses.size());
-        firstUses.push_back({std::move(key), {}, nullptr, nullptr, std::nullopt, {}});
+        firstUses.push_back({std::move(key), {}, nullptr, nullptr, std::nullopt, {}, {}});
     }
     tbb::parallel_for(
         tbb::blocked_range<size_t>(0, firstUses.size(), 1),
@@ -158,11 +159,11 @@ Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>&
                 const std::string full = u.key.substr(2);
                 if (u.key[0] == 'm') {
                     u.parseStart = fs::file_time_type::clock::now();
-                    Expected<Mesh> m = loadModelResource(full);
+                    Expected<Mesh> m = loadModelResource(full, &u.warnings);
                     if (!m) u.error = m.error();
                     else u.mesh = std::make_shared<const Mesh>(std::move(*m)), u.summary = summarize(*u.mesh);
                 } else {
-                    Expected<Heightfield> t = loadTerrainResource(full, settings_.chunkSize);
+                    Expected<Heightfield> t = loadTerrainResource(full, settings_.chunkSize, &u.warnings);
                     if (!t) u.error = t.error();
                     else u.terrain = std::make_shared<const Heightfield>(std::move(*t)), u.summary = summarize(*u.terrain);
                 }
@@ -181,6 +182,7 @@ Status SpaceSource::resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>&
             // First use: load it, and say once what is wrong with it (the objects are named
             // one by one below).
             FirstUse& u = firstUses[firstUseOf.at(key)];
+            diagnostics.insert(diagnostics.end(), u.warnings.begin(), u.warnings.end());
             if (u.error) diagnostics.push_back({u.error->file, u.error->line, u.error->message + "; every object using it is skipped"});
             mesh = std::move(u.mesh);
             terrain = std::move(u.terrain);

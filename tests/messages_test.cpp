@@ -4,6 +4,8 @@
 // libraries; libpng never writes to stderr itself.
 
 #include <filesystem>
+#include <regex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -34,6 +36,18 @@ std::string sunSpace(const std::string& direction, const std::string& bias = "0"
            "    <bias> " + bias + " </bias>\n"
            "    <slopeBias> " + slopeBias + " </slopeBias>\n"
            "    <filterRadius> " + filterRadius + " </filterRadius>\n"
+           "  </light>\n"
+           "</space>\n";
+}
+
+// space.xml with one point light 'lamp': 5 <position>, 6 <range>.
+std::string lampSpace(const std::string& position, const std::string& range) {
+    return "<space>\n"
+           "  <light>\n"
+           "    <name> lamp </name>\n"
+           "    <type> point </type>\n"
+           "    <position> " + position + " </position>\n"
+           "    <range> " + range + " </range>\n"
            "  </light>\n"
            "</space>\n";
 }
@@ -82,6 +96,16 @@ TEST(Messages, BadInputSaysFileLineValueAndWhatWasDone) {
         {"negative terrain tolerance",
          [](const fs::path& d) { writeText(d / "space.xml", "<space>\n  <terrainTolerance> -1 </terrainTolerance>\n</space>\n"); }, 3,
          {"space.xml:2: <terrainTolerance> is -1; it must not be negative"}, {}},
+        // Issue 35: values printed with the digits that tell them from the bound, and the
+        // interval an element accepts (a range must be above 0).
+        {"position just beyond the world",
+         [](const fs::path& d) { writeText(d / "space.xml", lampSpace("1.0000001e10 0 0", "25")); }, 3,
+         {"space.xml:5: <position> value 1.0000001e+10 is outside the accepted range [-1e+10, 1e+10]"}, {"value 1e+10 is"}},
+        {"range beyond the limit", [](const fs::path& d) { writeText(d / "space.xml", lampSpace("0 5 0", "-2e5")); }, 3,
+         {"space.xml:6: <range> value -200000 is outside the accepted range (0, 100000]"}, {"[-100000"}},
+        {"chunk size just beyond the limit",
+         [](const fs::path& d) { writeText(d / "space.xml", "<space>\n  <chunkSize> 100000.5 </chunkSize>\n</space>\n"); }, 3,
+         {"space.xml:2: <chunkSize> 100000.5 is outside the accepted range [1, 100000] m"}, {}},
         {"bad neighbours attribute",
          [](const fs::path& d) { writeText(d / "space.xml", "<space>\n\n  <neighbours left=\"x\"/>\n</space>\n"); }, 3,
          {"space.xml:3: <neighbours left=\"x\"> must be a whole number from 0 to 64"}, {}},
@@ -148,6 +172,10 @@ TEST(Messages, OptionErrorsGiveTheRangeAndTheValue) {
         {"import '" + (dir / "space" / "space.xml").string() + "' out --scene abc", "--scene: must be a whole number, 0 or more (got 'abc')"},
         {"import '" + (dir / "space" / "space.xml").string() + "' out --chunk-size -5", "--chunk-size: must be from 1 to 100000 (got -5)"},
         {"", "shadowcull: error: no command given (bake, sweep, diff, explain, check, render, preview, import, export, report or merge)"},
+        // Issue 35: an unknown command was "no command given".
+        {"frobnicate", "shadowcull: error: unknown command 'frobnicate' (the nearest is 'bake'); the commands are bake, sweep, "
+                       "diff, explain, check, render, preview, import, export, report or merge\n"},
+        {"bkae " + space, "shadowcull: error: unknown command 'bkae' (did you mean 'bake'?); the commands are bake, sweep,"},
     };
     for (const OptionCase& c : cases) {
         const int rc = runCli(c.args, dir / "o", dir / "e");
@@ -187,6 +215,30 @@ TEST(Messages, ReportsAndLightsSayWhyAndWhat) {
               std::string::npos)
         << err;
     EXPECT_FALSE(fs::exists(dir / "x.png"));
+}
+
+// docs/format.md's "Accepted ranges" (the table and the paragraph after it) gives every bound
+// of core/limits.h: the <neighbours> limit was missing. A bound added to limits.h without
+// its line in the docs fails here.
+TEST(Messages, AcceptedRangesGiveEveryLimit) {
+    const std::string limits = readText(fs::path(SHADOWCULL_SOURCE_DIR) / "core" / "limits.h");
+    const std::string docs = readText(fs::path(SHADOWCULL_SOURCE_DIR) / "docs" / "format.md");
+    const size_t from = docs.find("## Accepted ranges");
+    ASSERT_NE(from, std::string::npos);
+    const std::string section = docs.substr(from, docs.find("\n## ", from + 1) - from);
+    // Every number the section writes (1e5, 1e-10, 16,385, 64), as a value.
+    std::set<double> written;
+    const std::regex number(R"((\d+(?:,\d{3})*(?:\.\d+)?(?:e[-+]?\d+)?))");
+    for (auto it = std::sregex_iterator(section.begin(), section.end(), number); it != std::sregex_iterator(); ++it) {
+        std::string text = (*it)[1];
+        text.erase(std::remove(text.begin(), text.end(), ','), text.end());
+        written.insert(std::stod(text));
+    }
+    const std::regex constant(R"(constexpr\s+(?:double|int)\s+(k\w+)\s*=\s*([^;]+);)");
+    int constants = 0;
+    for (auto it = std::sregex_iterator(limits.begin(), limits.end(), constant); it != std::sregex_iterator(); ++it, ++constants)
+        EXPECT_TRUE(written.count(std::stod((*it)[2]))) << (*it)[1] << " = " << (*it)[2] << " is not in docs/format.md's accepted ranges";
+    EXPECT_GE(constants, 8);
 }
 
 // --help of every command, compared with tests/golden/help.txt: defaults (samples 256,
