@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "cli/pipeline.h"
+#include "cli/staged_outputs.h"
 #include "core/format.h"
 #include "core/savings.h"
 #include "gpu/render.h"
@@ -107,12 +108,11 @@ Disagreements compareChunk(const ChunkVerdicts& av, const std::vector<Decision>&
 }
 
 // 3. A picture per light with a disagreement, drawn from the window the analytic bake has
-// loaded (no second bake) and written at once.
+// loaded (no second bake) and staged at once; renamed into place when the check completes.
 Status drawPictures(const BakeWindow& window, const ChunkVerdicts& av, const Disagreements& outlined,
-                    const CheckOptions& options, const std::vector<std::string>& inputs, Tally& tally) {
+                    const CheckOptions& options, const std::vector<std::string>& inputs, StagedOutputs& staged, Tally& tally) {
     for (const auto& [light, groups] : outlined) {
-        std::error_code ec;
-        fs::create_directories(options.outDir, ec);
+        if (Status s = staged.makeDirectory(options.outDir); !s) return s;
         const std::string png =
             (fs::path(options.outDir) / (chunkFileName(av.coord) + "-light" + std::to_string(light + 1) + ".png")).string();
         if (Status s = refuseInputAsOutput(png, inputs, "--pictures"); !s) return s;
@@ -121,7 +121,7 @@ Status drawPictures(const BakeWindow& window, const ChunkVerdicts& av, const Dis
         rq.resolution = options.gpuResolution;
         rq.outlined = groups;
         rq.outlineMeaning = "where the GPU method disagrees";
-        Expected<gpu::RenderReport> r = gpu::renderLightView(window, av, rq, png);
+        Expected<gpu::RenderReport> r = gpu::renderLightView(window, av, rq, staged.stage(png));
         if (!r) return r.error();
         tally.pictures += "picture: " + png + " (" + std::to_string(groups.size()) +
                           (groups.size() == 1 ? " disagreeing group" : " disagreeing groups") + " outlined in magenta)\n";
@@ -165,15 +165,17 @@ int runCheck(const CheckOptions& options, std::ostream& out, std::ostream& err) 
     if (!g) return fail(g.error());
 
     Tally tally;
+    StagedOutputs pictures;  // an error or a signal leaves none of them
     analytic.onChunkBaked = [&](const BakeWindow& window, const ChunkVerdicts& av) -> Status {
         const auto it = original.find(av.coord);
         if (it == original.end()) return Status::ok();
         const Disagreements outlined = compareChunk(av, it->second, g->settings, tally);
         original.erase(it);  // compared: let it go
-        return options.pictures ? drawPictures(window, av, outlined, options, g->inputFiles, tally) : Status::ok();
+        return options.pictures ? drawPictures(window, av, outlined, options, g->inputFiles, pictures, tally) : Status::ok();
     };
     Expected<BakeResult> a = runBake(analytic);
     if (!a) return fail(a.error());
+    if (Status s = pictures.commit(); !s) return fail(s.error().kind == ErrorKind::Interrupted ? interrupted().error() : s.error());
 
     printTally(tally, options, g->gl, out);
     return tally.falseCulls ? 1 : 0;

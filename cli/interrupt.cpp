@@ -3,30 +3,47 @@
 #include <signal.h>
 #include <unistd.h>
 
-#include <csignal>
+#include <atomic>
 #include <initializer_list>
+
+#include "core/stop_request.h"
 
 namespace shadowcull::cli {
 
 namespace {
 
-volatile std::sig_atomic_t received = 0;
+std::atomic<InterruptMode> mode{InterruptMode::StopBetweenSteps};
+static_assert(std::atomic<InterruptMode>::is_always_lock_free, "the signal handler reads it");
+
+// write(2) is async-signal-safe; a partial write is harmless here.
+void say(const char* text, size_t length) {
+    const ssize_t n = ::write(STDERR_FILENO, text, length);
+    (void)n;
+}
+
+void exitAtOnce(int signal) {
+    static const char sigint[] = "\nshadowcull: error: interrupted by Ctrl-C (SIGINT)\n";
+    static const char sigterm[] = "\nshadowcull: error: interrupted by SIGTERM\n";
+    if (signal == SIGTERM) say(sigterm, sizeof sigterm - 1);
+    else say(sigint, sizeof sigint - 1);
+    ::_exit(exitCodeForSignal(signal));
+}
 
 void onSignal(int signal) {
-    const bool first = received == 0;
-    received = signal;
+    if (mode.load(std::memory_order_relaxed) == InterruptMode::ExitAtOnce) exitAtOnce(signal);
+    const bool first = stopSignal() == 0;
+    requestStop(signal);
     if (!first) return;
-    // write(2) is async-signal-safe; a partial write is harmless here.
     static const char message[] =
-        "\nshadowcull: interrupted: stopping after the step in hand and removing the bake's temporary files "
+        "\nshadowcull: interrupted: stopping after the step in hand and removing the temporary files "
         "(interrupt again to stop at once)\n";
-    const ssize_t n = ::write(STDERR_FILENO, message, sizeof message - 1);
-    (void)n;
+    say(message, sizeof message - 1);
 }
 
 }  // namespace
 
-void installInterruptHandlers() {
+void installInterruptHandlers(InterruptMode m) {
+    mode.store(m);
     struct sigaction sa {};
     sa.sa_handler = onSignal;
     sigemptyset(&sa.sa_mask);
@@ -41,10 +58,12 @@ void installInterruptHandlers() {
     }
 }
 
-int pendingInterrupt() { return int(received); }
+void setInterruptMode(InterruptMode m) { mode.store(m); }
 
-void clearInterrupt() { received = 0; }
+int pendingInterrupt() { return stopSignal(); }
 
-void simulateInterrupt(int signal) { received = signal; }
+void clearInterrupt() { requestStop(0); }
+
+void simulateInterrupt(int signal) { requestStop(signal); }
 
 }  // namespace shadowcull::cli

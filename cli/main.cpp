@@ -14,6 +14,7 @@
 #include "cli/interrupt.h"
 #include "cli/output_guard.h"
 #include "cli/pipeline.h"
+#include "cli/progress_reporter.h"
 #include "core/heap_tuning.h"
 #include "cli/check.h"
 #include "cli/diff.h"
@@ -36,56 +37,12 @@ using namespace shadowcull::cli;
 
 namespace {
 
-// Progress on stderr: on a terminal a one-line bar redrawn at most every 100 ms; in a log
-// (not a terminal) a line every 10 s and one at the end. The ETA counts only chunks that
-// were baked, not those --resume skipped.
-class ProgressBar {
-public:
-    explicit ProgressBar(bool enabled) : enabled_(enabled), tty_(isatty(STDERR_FILENO)) {}
-    void operator()(const BakeProgress& p) {
-        if (!enabled_) return;
-        auto now = std::chrono::steady_clock::now();
-        const bool end = p.done == p.total;
-        if (!end && now - last_ < (tty_ ? std::chrono::milliseconds(100) : std::chrono::milliseconds(10000))) return;
-        last_ = now;
-        const double elapsed = std::chrono::duration<double>(now - start_).count();
-        const double eta = p.etaSeconds(elapsed);
-        const std::string etaText = end ? "" : eta < 0 ? ", ETA unknown" : ", ETA " + formatDuration(eta);
-        const std::string resumed = p.resumed ? " (" + std::to_string(p.resumed) + " unchanged)" : "";
-        if (tty_) {
-            const int width = 30;
-            const int filled = p.total ? int(width * p.done / p.total) : width;
-            std::fprintf(stderr, "\r[%.*s%*s] %zu/%zu chunks%s  %s elapsed%s   ", filled,
-                         "##############################", width - filled, "", p.done, p.total, resumed.c_str(),
-                         formatDuration(elapsed).c_str(), etaText.c_str());
-            if (end) std::fprintf(stderr, "\n");
-        } else {
-            std::fprintf(stderr, "shadowcull: %zu/%zu chunks%s, %s elapsed%s\n", p.done, p.total, resumed.c_str(),
-                         formatDuration(elapsed).c_str(), etaText.c_str());
-        }
-        std::fflush(stderr);
-    }
-
-private:
-    // 42 s, 7 min 05 s, 2 h 03 min.
-    static std::string formatDuration(double s) {
-        char buf[32];
-        const long t = long(s + 0.5);
-        if (t < 60) std::snprintf(buf, sizeof buf, "%ld s", t);
-        else if (t < 3600) std::snprintf(buf, sizeof buf, "%ld min %02ld s", t / 60, t % 60);
-        else std::snprintf(buf, sizeof buf, "%ld h %02ld min", t / 3600, t / 60 % 60);
-        return buf;
-    }
-    bool enabled_, tty_;
-    std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), last_ = start_;
-};
-
 int runBakeCommand(BakeOptions opt, bool quiet) {
-    // Ctrl-C and SIGTERM stop the bake between steps, with its temporary files removed.
-    installInterruptHandlers();
-    ProgressBar bar(!quiet);
+    ProgressReporter progress = ProgressReporter::forStderr(!quiet);
     opt.keepVerdicts = false;  // counted and streamed: memory follows the window
-    Expected<BakeResult> r = runBake(opt, [&](const BakeProgress& p) { bar(p); });
+    opt.onScanned = [&](size_t files, size_t total) { progress.scanned(files, total); };
+    Expected<BakeResult> r = runBake(opt, [&](const BakeProgress& p) { progress.baked(p); });
+    progress.finish();
     if (!r) {
         // The message ends by saying which chunk files, if any, were updated.
         std::fprintf(stderr, "shadowcull: error: %s\n", r.error().what().c_str());
@@ -116,6 +73,10 @@ void addGlOptions(CLI::App* command, GlFlags& flags) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    // First: a signal while the process starts ends it with 128 + signal and a message, not
+    // with the default action's silence. Once the command is known, those that stage their
+    // outputs take signals between steps (below).
+    installInterruptHandlers(InterruptMode::ExitAtOnce);
     shadowcull::tuneHeapForLongBakes();
     // Named here, not after argv[0], so that --help reads the same however it was started.
     CLI::App app{"shadowcull: bakes which shadow casters matter, per object, primitive group and light", "shadowcull"};
@@ -324,6 +285,10 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "shadowcull bake: --shard bakes a part of the whole space; it cannot be combined with --chunk\n");
         return kExitUsage;
     }
+    // The commands that stage what they write stop between steps and remove it; the others
+    // only read, or write one file atomically at their end, and end at once.
+    for (const CLI::App* staging : {bake, check, sweep, render, preview, import})
+        if (*staging) setInterruptMode(InterruptMode::StopBetweenSteps);
     if (*bake) return runBakeCommand(opt, quiet);
     if (*merge) return runMerge(mergeOpt, std::cout, std::cerr);
     if (*diff) return runDiff(diffOpt, std::cout, std::cerr);

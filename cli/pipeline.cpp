@@ -33,6 +33,7 @@
 #include "core/format.h"
 #include "core/results_file.h"
 #include "core/space_source.h"
+#include "core/stop_request.h"
 #include "core/window.h"
 #include "gpu/baseline.h"
 #include "gpu/confirm_stage.h"
@@ -174,11 +175,11 @@ std::vector<ShadowWrite> shadowWrites(const ChunkVerdicts& cv) {
 }  // namespace
 
 Status interrupted() {
-    const int signal = pendingInterrupt();
-    if (!signal) return Status::ok();
-    return makeError(ErrorKind::Interrupted, "", 0,
-                     std::string("interrupted by ") + (signal == SIGTERM ? "SIGTERM" : signal == SIGINT ? "Ctrl-C (SIGINT)" : "a signal") +
-                         "; the bake's temporary files were removed");
+    const Status stop = stopStatus();
+    if (stop) return stop;
+    Error e = stop.error();
+    e.message += "; the bake's temporary files were removed";
+    return e;
 }
 
 Status StageRunner::probeGl(const BakeOptions& opt) {
@@ -316,6 +317,7 @@ Expected<ChunkBake> bakeChunk(const BakeOptions& opt, ChunkCoord chunk) {
     std::vector<ChunkCoord> only{chunk};
     Expected<SpaceSource> scanned = SpaceSource::scan(opt.spaceDir, opt.resourceRoot, wholeSpaceWindows(opt) ? nullptr : &only);
     if (!scanned) return scanned.error();
+    if (Status i = interrupted(); !i) return i.error();
     ChunkBake out;
     out.space = std::make_unique<Space>();
     out.space->settings = scanned->settings();
@@ -330,6 +332,7 @@ Expected<ChunkBake> bakeChunk(const BakeOptions& opt, ChunkCoord chunk) {
     StageRunner runner(opt);
     if (!runner.status()) return runner.status().error();
     out.window = buildWindow(*out.space, chunk, out.plan.chunks, out.terrainMeshes);
+    if (Status i = interrupted(); !i) return i.error();  // the window may be incomplete
     out.verdicts = makeChunkVerdicts(*out.space, out.window);
     out.stages = runner.timings();
     if (Status s = runner.bake(out.window, out.verdicts, out.stages); !s) return s.error();
@@ -420,6 +423,9 @@ Expected<BakeResult> runBake(const BakeOptions& opt, const Progress& progress) {
     Expected<BakeResult> r = runBakeWriting(opt, progress, committed);
     if (!r) {
         Error e = r.error();
+        // Stopped anywhere (the scan, a stage): the message says what was cleaned up.
+        if (e.kind == ErrorKind::Interrupted)
+            if (Status i = interrupted(); !i) e = i.error();
         e.message += writtenNote(committed);
         return e;
     }
@@ -504,7 +510,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     // --chunk: the original method reads those chunks and their neighbours; the analytic
     // bake the whole space, since their shadows may land anywhere (core/window_plan.h).
     const bool scanOnly = !opt.chunkNames.empty() && !wholeSpaceWindows(opt);
-    Expected<SpaceSource> scanned = SpaceSource::scan(opt.spaceDir, opt.resourceRoot, scanOnly ? &only : nullptr);
+    Expected<SpaceSource> scanned = SpaceSource::scan(opt.spaceDir, opt.resourceRoot, scanOnly ? &only : nullptr, opt.onScanned);
     if (!scanned) return scanned.error();
     SpaceSource& source = *scanned;
     BakeResult result;
@@ -601,6 +607,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     TerrainMeshes terrainMeshes;
     const WindowPlanner planner(source.settings(), source.chunks(), wholeSpaceWindows(opt));
     WindowSequence windows(source, targets, planner);
+    if (Status i = interrupted(); !i) return i.error();  // the sequence may be incomplete
     auto release = [&](size_t k) {
         const std::vector<std::shared_ptr<const Mesh>> gone = windows.leave(k, space, terrainMeshes);
         if (gone.empty()) return;
@@ -689,6 +696,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
             if (planner.wholeSpace()) result.reach.add(plan);
             if (planner.wholeSpace() && opt.keepVerdicts) result.plans[targets[k]] = plan;
             const BakeWindow window = buildWindow(space, targets[k], plan.chunks, terrainMeshes);
+            if (Status i = interrupted(); !i) return stopWith(i.error());  // the window may be incomplete
             cv = makeChunkVerdicts(space, window);
             if (Status status = runner.bake(window, cv, result.stages); !status) {
                 Error e = status.error();

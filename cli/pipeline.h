@@ -89,6 +89,9 @@ struct BakeOptions {
     // before the bake lets them go (benchmarks count them, `check` compares and draws them,
     // without keeping them). An error stops the bake with it.
     std::function<Status(const BakeWindow&, const ChunkVerdicts&)> onChunkBaked;
+    // Called as the scan reads the chunk files, before any chunk is baked (the CLI's
+    // progress: a world's scan takes minutes).
+    ScanProgress onScanned;
 };
 
 struct StageTiming {
@@ -206,7 +209,8 @@ using Progress = std::function<void(const BakeProgress&)>;
 Expected<BakeResult> runBake(const BakeOptions& options, const Progress& progress = {});
 
 // Ok, or an Interrupted error once SIGINT or SIGTERM arrived (cli/interrupt.h): the bake
-// checks it between stages and chunks and cleans up on its own thread.
+// checks it between stages and chunks (the scan, the window's loads and the stages' loops
+// check it too: core/stop_request.h) and cleans up on its own thread.
 Status interrupted();
 
 // Effects the window calls for, as the bake simulated them (for the summary and JSON).

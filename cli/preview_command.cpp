@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "cli/render_command.h"
+#include "cli/staged_outputs.h"
 #include "gpu/preview.h"
 
 namespace shadowcull::cli {
@@ -67,10 +68,15 @@ int runPreview(const PreviewOptions& options, std::ostream& out, std::ostream& e
     rq.shadowResolution = options.shadowResolution;
     rq.pcfRadius = options.pcfRadius;
     rq.timingRepeats = options.repeats;
-    Expected<gpu::PreviewReport> r = gpu::renderShadowPreview(bake.window, bake.verdicts, rq, options.outPath);
+    StagedOutputs picture;  // renamed into place below: a signal or an error leaves no partial PNG
+    Expected<gpu::PreviewReport> r = gpu::renderShadowPreview(bake.window, bake.verdicts, rq, picture.stage(options.outPath));
     if (!r) {
         err << "shadowcull: error: " << r.error().what() << "\n";
         return exitCodeFor(r.error().kind);
+    }
+    if (Status s = picture.commit(); !s) {
+        err << "shadowcull: error: " << s.error().what() << "; " << options.outPath << " was not written\n";
+        return exitCodeFor(s.error().kind);
     }
     const Light& L = lights[size_t(rq.light)];
     out << "wrote " << options.outPath << " (" << r->pictureWidth << " x " << r->pictureHeight << " px): light "

@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "cli/output_guard.h"
+#include "cli/staged_outputs.h"
 #include "gpu/render.h"
 
 namespace shadowcull::cli {
@@ -50,10 +51,15 @@ int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err
     rq.light = options.light - 1;
     rq.resolution = options.bake.gpuResolution;
     rq.colouredBy = options.bake.gpuBaseline ? "the original GPU method's verdicts" : "analytic verdicts";
-    Expected<gpu::RenderReport> r = gpu::renderLightView(bake.window, bake.verdicts, rq, options.outPath);
+    StagedOutputs picture;  // renamed into place below: a signal or an error leaves no partial PNG
+    Expected<gpu::RenderReport> r = gpu::renderLightView(bake.window, bake.verdicts, rq, picture.stage(options.outPath));
     if (!r) {
         err << "shadowcull: error: " << r.error().what() << "\n";
         return exitCodeFor(r.error().kind);
+    }
+    if (Status s = picture.commit(); !s) {
+        err << "shadowcull: error: " << s.error().what() << "; " << options.outPath << " was not written\n";
+        return exitCodeFor(s.error().kind);
     }
     out << "wrote " << options.outPath << " (" << r->width << " x " << r->height << " px): light " << options.light
         << " '" << bake.window.lsLights[size_t(rq.light)].name << "' over " << chunkFileName(coord) << ", groups "

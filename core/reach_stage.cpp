@@ -11,6 +11,7 @@
 #include "core/light_reach.h"
 #include "core/savings.h"
 #include "core/stage.h"
+#include "core/stop_request.h"
 
 namespace shadowcull {
 
@@ -67,6 +68,10 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
         beyondRange[l] = std::make_shared<const Evidence>(
             Evidence{"the group lies beyond the light's range (" + formatNumber(window.lsLights[l].range) + " m)", {}, {}});
     for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+        // A chunk of 50,000 objects takes seconds here: a signal stops it (the bits left
+        // undecided are never written).
+        if (oi % 1024 == 0)
+            if (Status s = stopStatus(); !s) return s;
         ObjectVerdicts& ov = cv.objects[oi];
         if (ov.windowObject < 0) continue;
         const WindowObject& wo = window.objects[size_t(ov.windowObject)];

@@ -18,6 +18,7 @@
 #include "core/format.h"
 #include "core/hash.h"
 #include "core/limits.h"
+#include "core/stop_request.h"
 #include "core/window_plan.h"
 
 namespace fs = std::filesystem;
@@ -266,7 +267,7 @@ std::shared_ptr<const Mesh> SpaceSource::unpark(const std::string& key) {
 }
 
 Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::string& resourceRootOverride,
-                                        const std::vector<ChunkCoord>* only, Space* keep) {
+                                        const std::vector<ChunkCoord>* only, Space* keep, const ScanProgress& progress) {
     SpaceSource src;
     Expected<SpaceSettings> st = readSpaceSettings(spaceDir, resourceRootOverride);
     if (!st) return st.error();
@@ -320,8 +321,13 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
     std::map<size_t, std::vector<Diagnostic>> readWarnings;  // by file order
     std::vector<Diagnostic> resourceWarnings;
     std::set<std::string> namedResources;                     // every resource path an object names
+    size_t toScan = 0, scanned = 0;
+    for (const auto& [coord, file] : named) toScan += !only || wanted.count(coord) ? 1 : 0;
+    if (progress) progress(0, toScan);
     for (const auto& [coord, file] : named) {
         if (only && !wanted.count(coord)) continue;
+        // A world's scan takes minutes: a signal stops it between chunk files.
+        if (Status s = stopStatus(); !s) return s.error();
         const std::string path = file.first.string();
         Expected<ChunkFile> cf = readChunkFile(path, coord, readWarnings[file.second]);
         if (!cf) {
@@ -361,6 +367,7 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
             src.liveMeshes_.clear();
             src.liveTerrains_.clear();
         }
+        if (progress) progress(++scanned, toScan);
     }
     if (keep) {
         // The objects hold their meshes; the source lets them go with the objects.
@@ -381,8 +388,8 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
 }
 
 Expected<SpaceSource> SpaceSource::scan(const std::string& spaceDir, const std::string& resourceRootOverride,
-                                        const std::vector<ChunkCoord>* only) {
-    return read(spaceDir, resourceRootOverride, only, nullptr);
+                                        const std::vector<ChunkCoord>* only, const ScanProgress& progress) {
+    return read(spaceDir, resourceRootOverride, only, nullptr, progress);
 }
 
 std::vector<std::string> SpaceSource::inputFiles() const {
@@ -393,6 +400,8 @@ std::vector<std::string> SpaceSource::inputFiles() const {
 }
 
 Status SpaceSource::load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
+    // A window of large chunks takes seconds to load: a signal stops it between them.
+    if (Status s = stopStatus(); !s) return s;
     const ChunkEntry& entry = chunks_.at(c);
     std::vector<Diagnostic> ignored;  // the scan gave these
     Expected<ChunkFile> cf = readChunkFile(entry.path, c, ignored);
@@ -435,8 +444,12 @@ std::vector<std::shared_ptr<const Mesh>> SpaceSource::unload(ChunkCoord c, Space
 
 WindowSequence::WindowSequence(SpaceSource& source, std::vector<ChunkCoord> centres, const WindowPlanner& planner)
     : source_(source), planner_(planner), centres_(std::move(centres)) {
-    for (size_t k = 0; k < centres_.size(); ++k)
+    for (size_t k = 0; k < centres_.size(); ++k) {
+        // Planning every window of a large world takes seconds; once a stop is requested the
+        // sequence is left incomplete (enter() refuses to go on: SpaceSource::load).
+        if (stopRequested()) break;
         for (ChunkCoord c : window(k)) lastUse_[c] = k;
+    }
 }
 
 std::vector<ChunkCoord> WindowSequence::window(size_t k) const { return planner_.plan(centres_[k]).chunks; }
@@ -452,7 +465,7 @@ Status WindowSequence::enter(size_t k, Space& space, std::vector<Diagnostic>& la
 std::vector<std::shared_ptr<const Mesh>> WindowSequence::leave(size_t k, Space& space, TerrainMeshes& terrainMeshes) {
     std::vector<std::shared_ptr<const Mesh>> gone;
     for (ChunkCoord c : window(k))
-        if (lastUse_.at(c) == k && space.chunks.count(c)) {
+        if (auto last = lastUse_.find(c); last != lastUse_.end() && last->second == k && space.chunks.count(c)) {
             std::vector<std::shared_ptr<const Mesh>> g = source_.unload(c, space, terrainMeshes);
             gone.insert(gone.end(), g.begin(), g.end());
         }

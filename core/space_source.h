@@ -8,6 +8,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <set>
@@ -55,13 +56,17 @@ struct ChunkEntry {
     Aabb wsBounds;
 };
 
+// Called by the scan before the first chunk file (0 of `total`) and after each one.
+using ScanProgress = std::function<void(size_t scanned, size_t total)>;
+
 class SpaceSource {
 public:
     // Reads space.xml, lists the chunk files and scans every one of them (or those of `only`
     // and their neighbours). Errors are loadSpace's: a malformed chunk file stops the scan
-    // (the first such file in file-name order, as loadSpace reads them).
+    // (the first such file in file-name order, as loadSpace reads them). A stop request
+    // (core/stop_request.h) stops it between chunk files with an Interrupted error.
     static Expected<SpaceSource> scan(const std::string& spaceDir, const std::string& resourceRootOverride,
-                                      const std::vector<ChunkCoord>* only = nullptr);
+                                      const std::vector<ChunkCoord>* only = nullptr, const ScanProgress& progress = {});
 
     const SpaceSettings& settings() const { return settings_; }
     // Every warning of reading the space, exactly as loadSpace gives them.
@@ -80,7 +85,8 @@ public:
     // edited since is never written by the bake (its text no longer has that hash). A
     // resource that no longer loads, or loads different content, is an Io error: the scan's
     // verdict on it would no longer hold. `lateDiagnostics` gets the warnings about objects
-    // an edit since the scan added.
+    // an edit since the scan added. A stop request (core/stop_request.h) is an Interrupted
+    // error before anything is read.
     Status load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics);
     // Drops chunk `c` from `space.chunks`, then the meshes and heightfields no loaded chunk
     // uses any more (with their terrain meshes). Returns the meshes that go: whatever is
@@ -98,7 +104,7 @@ private:
     friend Expected<Space> loadSpace(const std::string&, const std::string&, const std::vector<ChunkCoord>*);
     // The scan; with `keep`, every chunk goes into keep->chunks with its meshes attached.
     static Expected<SpaceSource> read(const std::string& spaceDir, const std::string& resourceRootOverride,
-                                      const std::vector<ChunkCoord>* only, Space* keep);
+                                      const std::vector<ChunkCoord>* only, Space* keep, const ScanProgress& progress = {});
     // Resolves the objects' resources: skipped flags, reasons and warnings as loadSpace
     // gives them; `attach` also attaches the meshes (loading what is not live).
     Status resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>& diagnostics);

@@ -7,6 +7,8 @@
 
 #include <tbb/parallel_for_each.h>
 
+#include "core/stop_request.h"
+
 namespace shadowcull {
 
 std::optional<double> BakeWindow::lsTerrainHeight(double x, double z) const {
@@ -267,6 +269,9 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre, const std::vector<
             // Chunk origin relative to the window origin: whole chunks, exact in double.
             const glm::dvec3 lsChunk(double(dx) * S.chunkSize, -oy, double(dz) * S.chunkSize);
             for (const ChunkObject& o : cf.objects) {
+                // A window of 200,000 objects takes seconds: a stop request leaves it
+                // incomplete, for the caller to notice (see window.h).
+                if (w.objects.size() % 1024 == 0 && stopRequested()) return w;
                 if (o.skipped) {
                     ++w.skippedObjects;
                     continue;

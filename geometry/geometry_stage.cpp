@@ -26,6 +26,7 @@
 #include "core/light_reach.h"
 #include "core/mesh_index.h"
 #include "core/rounding.h"
+#include "core/stop_request.h"
 #include "geometry/exact_frustum.h"
 #include "geometry/shadow_query.h"
 
@@ -490,6 +491,8 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
         std::atomic<bool> contradiction{false};
         std::string contradictionAt;
         tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
+            // A signal: the tasks not begun leave their bits undecided; the stage then stops.
+            if (stopRequested()) return;
             // Exact predicates: CGAL's interval filters need gradual underflow, whatever
             // mode an earlier stage's tasks left TBB in (core/float_mode.h).
             const FloatModeScope ieee(FloatModeScope::Underflow::Gradual);
@@ -776,6 +779,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
                 ++culled;
             }
         });
+        if (Status s = stopStatus(); !s) return s;
         // In a fixed order whatever the threads did.
         std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
             return std::tie(a.object, a.group, a.light) < std::tie(b.object, b.group, b.light);

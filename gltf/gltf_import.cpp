@@ -7,6 +7,7 @@
 
 #include "gltf/gltf_import.h"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -30,6 +31,7 @@
 #include "core/gltf_document.h"
 #include "core/hash.h"
 #include "core/limits.h"
+#include "core/stop_request.h"
 #include "gltf/glb_writer.h"
 
 namespace shadowcull::gltf {
@@ -56,6 +58,33 @@ struct Failure {
 };
 
 [[noreturn]] void fail(std::string message) { throw Failure{std::move(message)}; }
+
+// A signal stops the import between nodes, meshes and chunk files (a 200,000-node scene
+// takes tens of seconds): thrown, so that write() removes its staging directory.
+void stopIfRequested() {
+    if (Status s = stopStatus(); !s) throw s.error();
+}
+
+// Whether process `pid` still runs (a signal 0 reaches it, or exists but is not ours).
+bool processAlive(long pid) { return pid > 0 && (::kill(pid_t(pid), 0) == 0 || errno == EPERM); }
+
+// Staging directories "<out>.import-<pid>" beside `out` that a killed import left (its
+// process is gone: a running import's are left alone), removed. A second Ctrl-C, or
+// SIGKILL, ends an import before it can remove its own (~32 MB for a large scene).
+void removeStaleStaging(const fs::path& parent, const std::string& outName) {
+    const std::string prefix = outName + ".import-";
+    std::error_code ec;
+    for (const fs::directory_entry& de : fs::directory_iterator(parent, ec)) {
+        const std::string name = de.path().filename().string();
+        if (name.compare(0, prefix.size(), prefix) != 0) continue;
+        const std::string digits = name.substr(prefix.size());
+        long pid = 0;
+        const auto [end, err] = std::from_chars(digits.data(), digits.data() + digits.size(), pid);
+        if (err != std::errc() || end != digits.data() + digits.size() || processAlive(pid)) continue;
+        std::error_code rec;
+        if (de.is_directory(rec) && !de.is_symlink(rec)) fs::remove_all(de.path(), rec);
+    }
+}
 
 const json* member(const json& obj, const char* key) {
     if (!obj.is_object()) return nullptr;
@@ -165,6 +194,7 @@ public:
         if (placements_.empty()) fail("the scene has no node that draws a mesh with triangles: nothing to bake");
         readLights();
         layout();
+        stopIfRequested();
         write();
         return report_;
     }
@@ -192,6 +222,7 @@ private:
         std::vector<std::tuple<size_t, glm::dmat4, bool, std::optional<bool>>> stack;
         for (auto r = roots.rbegin(); r != roots.rend(); ++r) stack.emplace_back(*r, glm::dmat4(1.0), false, std::nullopt);
         while (!stack.empty()) {
+            if (report_.nodes % 1024 == 0) stopIfRequested();
             auto [n, parentWorld, movedAbove, castsAbove] = stack.back();
             stack.pop_back();
             ++report_.nodes;
@@ -443,12 +474,14 @@ private:
         const fs::path parent = out.has_parent_path() ? out.parent_path() : fs::path(".");
         const fs::path temp = parent / (out.filename().string() + ".import-" + std::to_string(::getpid()));
         std::error_code ec;
+        removeStaleStaging(parent, out.filename().string());
         fs::remove_all(temp, ec);
         try {
             fs::create_directories(temp / "models");
             writeSpace(temp);
             std::map<size_t, std::string> resources = writeMeshes(temp);
             writeChunks(temp, resources);
+            stopIfRequested();  // the last moment: after the rename the space is complete
             // An empty directory is replaced by rename(2); anything else was refused earlier.
             if (fs::exists(out)) fs::remove(out);
             fs::rename(temp, out);
@@ -525,6 +558,7 @@ private:
         std::map<size_t, std::string> resources;
         for (const Placement& p : placements_) {
             if (resources.count(p.mesh)) continue;
+            stopIfRequested();
             const std::vector<GltfPrimitive>& prims = **doc_.mesh(p.mesh, gltfPath("nodes", p.node));
             std::string name;
             if (const json* m = member(doc_.json()["meshes"][p.mesh], "name"); m && m->is_string()) name = m->get<std::string>();
@@ -541,6 +575,7 @@ private:
         for (const Placement& p : placements_) chunks[p.chunk].push_back(&p);
         const double S = report_.chunkSize;
         for (const auto& [coord, list] : chunks) {
+            stopIfRequested();
             tinyxml2::XMLPrinter x;
             x.OpenElement("chunk");
             for (const Placement* p : list) {
@@ -675,6 +710,7 @@ Expected<ImportReport> importScene(const ImportOptions& opt) {
     try {
         Expected<GltfDocument> doc = GltfDocument::open(opt.scenePath);
         if (!doc) throw doc.error();
+        if (Status s = stopStatus(); !s) return makeError(ErrorKind::Interrupted, "", 0, s.error().message + " (nothing written)");
         Importer importer(opt, *doc);
         ImportReport report = importer.run();
         for (const Diagnostic& d : doc->warnings()) report.warnings.push_back(d);
@@ -683,6 +719,7 @@ Expected<ImportReport> importScene(const ImportOptions& opt) {
         return makeError(ErrorKind::BadInput, opt.scenePath, 0, f.message + " (nothing written)");
     } catch (const Error& e) {
         Error copy = e;
+        if (copy.kind == ErrorKind::Interrupted) copy.message += "; the staging directory was removed";
         if (copy.kind != ErrorKind::Io) copy.message += " (nothing written)";
         return copy;
     }

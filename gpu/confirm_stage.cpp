@@ -61,6 +61,7 @@
 
 #include "core/float_mode.h"
 #include "core/format.h"
+#include "core/stop_request.h"
 #include "core/light_reach.h"
 #include "gpu/confirm_gl.h"
 #include "gpu/confirm_surfaces.h"
@@ -452,6 +453,8 @@ Status GpuConfirmStage::runLight(const BakeWindow& w, ChunkVerdicts& cv, int l, 
     };
 
     for (size_t vi = 0; vi < views.size(); ++vi) {
+        // A point light's six views take seconds on a large window: a signal stops between them.
+        if (Status s = stopStatus(); !s) return s;
         const LightView& view = views[vi];
         const ViewPrep& vp = preps[vi];
         if (vp.skip) continue;

@@ -39,6 +39,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/float_mode.h"
+#include "core/stop_request.h"
 #include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
 #include "raycast/receiver_targets.h"
@@ -470,6 +471,8 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
         // examines bits the first one already counted).
         auto trace = [&](std::vector<WitnessSearch>& tasks, const char* why, bool countExamined) {
             tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
+                // A signal: the searches not begun stay undecided; the stage then stops.
+                if (stopRequested()) return;
                 // Denormals in traversal cost ~100x per operation; the geometry never needs them.
                 const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);
                 WitnessSearch& task = tasks[ti];
@@ -552,6 +555,7 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
             });
         };
         trace(searches, reason, true);
+        if (Status s = stopStatus(); !s) return s;
         if (receiverSide && im.opt.receiverSamples > 0) {
             // The receiver-side pass (receiver_targets.h): the bits of large casters the
             // group's own samples left undecided, one search per (group, light).
@@ -575,6 +579,7 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
                 }
             }
             trace(more, "witness ray through a receiver in the group's shadow (receiver-side search)", false);
+            if (Status s = stopStatus(); !s) return s;
         }
         scene.reset();
         im.scenes->noteRays(rays);

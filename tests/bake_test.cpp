@@ -517,6 +517,9 @@ TEST(Cli, ProgressInALogAndEtaFromBakedChunks) {
     const std::string bake = "bake '" + (dir / "space").string() + "' --out '" + (dir / "out").string() + "' --resume";
     ASSERT_EQ(runCli(bake, dir / "o", dir / "e"), 0) << readText(dir / "e");
     EXPECT_NE(readText(dir / "e").find("shadowcull: 9/9 chunks, "), std::string::npos) << readText(dir / "e");
+    // The first line as the scan begins (issue 35: a large world's log was silent for its
+    // whole scan): the log says at once that the bake is under way.
+    EXPECT_EQ(readText(dir / "e").rfind("shadowcull: scanning the space: 0/9 chunk files, ", 0), 0u) << readText(dir / "e");
     ASSERT_EQ(runCli(bake, dir / "o", dir / "e"), 0) << readText(dir / "e");
     EXPECT_NE(readText(dir / "e").find("shadowcull: 9/9 chunks (9 unchanged), "), std::string::npos) << readText(dir / "e");
     ASSERT_EQ(runCli(bake + " --quiet", dir / "o", dir / "e"), 0);

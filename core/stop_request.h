@@ -1,0 +1,25 @@
+// A request to stop long work, made by SIGINT or SIGTERM (the CLI's handler records it:
+// cli/interrupt.h). Process-wide on purpose: a signal handler can reach nothing else, and
+// the loops that must notice it within a second live in every layer (the space scan, the
+// window planner, import, the stages' per-object loops), none of which is handed a token
+// through its interface. Reading it is one relaxed atomic load: cheap enough for any loop.
+#pragma once
+
+#include <atomic>
+
+#include "core/status.h"
+
+namespace shadowcull {
+
+// The signal that asked to stop, or 0.
+int stopSignal();
+inline bool stopRequested() { return stopSignal() != 0; }
+
+// Records `signal` (async-signal-safe: a lock-free atomic store). 0 forgets it (tests).
+void requestStop(int signal);
+
+// Ok, or an Interrupted error naming the signal ("interrupted by Ctrl-C (SIGINT)"): the
+// caller returns it as it is, and whoever removes the temporaries says so.
+Status stopStatus();
+
+}  // namespace shadowcull
