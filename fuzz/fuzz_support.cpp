@@ -41,6 +41,15 @@ struct Scratch {
     std::abort();
 }
 
+}  // namespace
+
+void brokenPromise(const char* what) {
+    std::fprintf(stderr, "fuzz: broken promise: %s\n", what);
+    std::abort();
+}
+
+namespace {
+
 uint32_t crc32(const unsigned char* p, size_t n) {
     static const std::array<uint32_t, 256> table = [] {
         std::array<uint32_t, 256> t{};

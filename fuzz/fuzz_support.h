@@ -42,4 +42,6 @@ std::string withPngCrcsFixed(std::string png);
 // triangle, finite vertices and heights. A broken promise aborts with a message, so that a
 // reader that hands later stages bad data is found even where it does not crash itself.
 void checkMesh(const shadowcull::Mesh& mesh);
+// Aborts with "fuzz: broken promise: <what>" (a promise of the tool, not of a loader).
+[[noreturn]] void brokenPromise(const char* what);
 void checkHeightfield(const shadowcull::Heightfield& hf);

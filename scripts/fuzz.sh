@@ -14,7 +14,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 readers=("$@")
-[ ${#readers[@]} -gt 0 ] || readers=(space chunk model obj gltf terrain diff bake import)
+[ ${#readers[@]} -gt 0 ] || readers=(space chunk model obj gltf terrain diff bake import layout)
 
 # clang plus compiler-rt (libclang-rt-14-dev holds libFuzzer, -fsanitize=fuzzer, on Debian
 # 12); llvm for llvm-symbolizer (stack traces with file and line).

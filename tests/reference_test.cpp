@@ -421,7 +421,7 @@ private:
 }  // namespace
 
 TEST(ExactReference, RandomNearDegenerateScenesHaveNoFalseCull) {
-    const size_t sceneCount = envCount("SHADOWCULL_REFERENCE_SCENES", 2500);
+    const size_t sceneCount = envCount("SHADOWCULL_REFERENCE_SCENES", 10000);
     const uint64_t seed = envCount("SHADOWCULL_REFERENCE_SEED", 34);
     const char* draws = std::getenv("SHADOWCULL_REFERENCE_DRAWS");
     SceneGenerator gen(seed, !(draws && std::string(draws) == "narrow"));
