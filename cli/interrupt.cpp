@@ -26,6 +26,7 @@ void exitAtOnce(int signal) {
     static const char sigterm[] = "\nshadowcull: error: interrupted by SIGTERM\n";
     if (signal == SIGTERM) say(sigterm, sizeof sigterm - 1);
     else say(sigint, sizeof sigint - 1);
+    removeHeldTemporary();  // a one-file atomic write in hand (writeFileAtomic)
     ::_exit(exitCodeForSignal(signal));
 }
 

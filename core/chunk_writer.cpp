@@ -17,6 +17,8 @@
 #include <filesystem>
 #include <vector>
 
+#include "core/stop_request.h"
+
 namespace shadowcull {
 
 namespace {
@@ -504,9 +506,16 @@ Status commitStagedFile(const std::string& staged, const std::string& path) {
 }
 
 Status writeFileAtomic(const std::string& path, const std::string& contents) {
-    Expected<std::string> staged = stageFile(path, contents);
-    if (!staged) return staged.error();
-    return commitStagedFile(*staged, path);
+    Expected<StagedFile> f = StagedFile::open(path);
+    if (!f) return f.error();
+    // Held from creation to the rename: a signal that ends the process removes it.
+    const std::string temp = tempPathFor(path);
+    const bool held = holdTemporary(temp.c_str());
+    Status s = f->append(contents);
+    if (s) s = f->sync();
+    if (s) s = f->commit();
+    if (held) releaseTemporary();
+    return s;
 }
 
 std::vector<std::string> staleTempFiles(const std::string& dir) {

@@ -22,4 +22,14 @@ void requestStop(int signal);
 // caller returns it as it is, and whoever removes the temporaries says so.
 Status stopStatus();
 
+// The temporary a one-file atomic write has in hand (writeFileAtomic, core/chunk_writer.h):
+// for the commands that end at once on a signal (diff, merge, report, sweep's files), whose
+// handler removes it before the process ends, so that no `.NAME.shadowcull-tmp` is left. One
+// at a time: while one is held, holdTemporary() by another thread returns false and that
+// write is not covered (the bake's own writes are staged and removed by the bake itself).
+bool holdTemporary(const char* path);
+void releaseTemporary();
+// Async-signal-safe: unlink(2) of the held temporary, if any.
+void removeHeldTemporary();
+
 }  // namespace shadowcull

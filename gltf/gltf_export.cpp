@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 #include <tinyxml2.h>
 
+#include "core/chunk_writer.h"
 #include "core/file_read.h"
 #include "core/format.h"
 #include "core/gltf_document.h"
@@ -122,27 +123,11 @@ std::set<size_t> spaceNodes(const std::string& spaceDir) {
     return nodes;
 }
 
+// Through the one atomic writer (core/chunk_writer.h): its temporary is created with O_EXCL
+// and O_NOFOLLOW (a link planted at a predictable name is never written through), synced,
+// renamed, and removed by the signal handler if the process ends meanwhile.
 void writeAtomically(const std::string& path, const std::string& bytes) {
-    const fs::path target(path);
-    const fs::path temp = target.parent_path() / ("." + target.filename().string() + ".export-" + std::to_string(::getpid()));
-    {
-        errno = 0;
-        std::ofstream f(temp, std::ios::binary);
-        f.write(bytes.data(), std::streamsize(bytes.size()));
-        f.close();
-        if (!f) {
-            const std::string why = errno ? errnoText(errno) : "write failed";
-            std::error_code ec;
-            fs::remove(temp, ec);
-            fail(path, "could not write: " + why + " (nothing written)", ErrorKind::Io);
-        }
-    }
-    std::error_code ec;
-    fs::rename(temp, target, ec);
-    if (ec) {
-        fs::remove(temp, ec);
-        fail(path, "could not replace: " + ec.message() + " (nothing written)", ErrorKind::Io);
-    }
+    if (Status s = writeFileAtomic(path, bytes); !s) fail(path, s.error().message + " (nothing written)", ErrorKind::Io);
 }
 
 // A .gltf names its buffers and images by paths relative to itself: written elsewhere

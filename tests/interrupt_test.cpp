@@ -310,6 +310,34 @@ TEST(StagedOutputs, ASignalLeavesNoFileAndNoDirectory) {
     }
 }
 
+// The commands that end at once on a signal (diff, merge, report, sweep's files) write one
+// file atomically; a signal while its temporary is in hand removed nothing and left
+// `.NAME.shadowcull-tmp` beside it. The handler now removes the held temporary.
+TEST(InterruptAtOnce, RemovesTheTemporaryOfTheFileInHand) {
+    const fs::path dir = freshTestDir();
+    const fs::path temp = dir / ".report.html.shadowcull-tmp";
+    writeText(temp, "half a report");
+    const pid_t child = fork();
+    if (child == 0) {
+        cli::installInterruptHandlers(cli::InterruptMode::ExitAtOnce);
+        if (!holdTemporary(temp.c_str())) _exit(2);
+        ::raise(SIGTERM);
+        _exit(3);  // not reached: the handler ends the process
+    }
+    ASSERT_GT(child, 0);
+    int status = 0;
+    ASSERT_EQ(::waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 143);
+    EXPECT_FALSE(fs::exists(temp)) << "the temporary in hand is removed";
+    // Released (the file renamed into place), nothing is removed.
+    ASSERT_TRUE(holdTemporary(temp.c_str()));
+    releaseTemporary();
+    writeText(temp, "another");
+    removeHeldTemporary();
+    EXPECT_TRUE(fs::exists(temp));
+}
+
 // Issue 35: after Ctrl-C a 200,000-node bake took 45 s to stop: the scan, the window's
 // loads and the stages' loops never looked at the signal. Each now stops at its next
 // step with an Interrupted error, its bits left undecided.
