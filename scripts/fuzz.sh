@@ -32,11 +32,12 @@ cmake --build build-fuzz -j "$(nproc)" --target "${targets[@]}" >>"$log" 2>&1 ||
 echo "fuzz: build-fuzz ready in $(($(date +%s) - start)) s (log: $log)"
 
 # Input size limits: a few times the largest seed, so that inputs can grow but runs stay fast.
-declare -A max_len=([space]=4096 [chunk]=8192 [model]=8192 [obj]=8192 [gltf]=8192 [terrain]=8192 [diff]=16384 [bake]=8192 [import]=16384)
+declare -A max_len=([space]=4096 [chunk]=8192 [model]=8192 [obj]=8192 [gltf]=8192 [terrain]=8192 [diff]=16384 [bake]=8192 [import]=16384 [layout]=8192)
 # Dictionaries (fuzz/dict/): the element names, keys and keywords each reader compares against.
 declare -A dicts=([space]="xml space" [chunk]="xml chunk" [model]="xml model obj gltf split" [obj]="obj split"
                   [gltf]="gltf split" [terrain]="xml png split" [diff]="results split"
-                  [bake]="xml space chunk obj png split" [import]="gltf import split")
+                  [bake]="xml space chunk obj png split" [import]="gltf import split"
+                  [layout]="xml space chunk obj png split")
 
 scratch=$(mktemp -d /dev/shm/shadowcull-fuzz.XXXXXX 2>/dev/null || mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
@@ -53,7 +54,7 @@ artifacts() { find "fuzz/regressions/$1" -maxdepth 1 -type f \( -name 'crash-*' 
 signature() {
   local out kind frame
   out=$(timeout 60 "build-fuzz/bin/fuzz_$1" -timeout=10 -rss_limit_mb=4096 "$2" 2>&1) && return 0
-  kind=$(grep -o -m1 -E 'runtime error|LeakSanitizer|AddressSanitizer: [a-z-]+|libFuzzer: [a-z-]+|loader broke its promise' <<<"$out" || true)
+  kind=$(grep -o -m1 -E 'runtime error|LeakSanitizer|AddressSanitizer: [a-z-]+|libFuzzer: [a-z-]+|loader broke its promise|broken promise' <<<"$out" || true)
   frame=$(grep -E '^ +#[0-9]+ ' <<<"$out" | grep -o -m1 -E '/(core|cli|raycast|geometry|gpu|gltf)/[^ :]+:[0-9]+' | sed 's|^/||' || true)
   echo "${kind:-crash} @ ${frame:-?}"
 }
