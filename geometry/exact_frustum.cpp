@@ -54,8 +54,17 @@ double normUpper(const Vector& n) {
 // Keeps the part of the convex polygon `poly` where f >= 0 (Sutherland-Hodgman). Exact
 // over K; over intervals a sign that is not certain throws (the caller then starts over
 // exactly).
+// A point given as doubles (an interval point of zero width) that is bitwise `x`.
+bool isExactly(const IK::Point_3& p, const glm::dvec3& x) {
+    return p.x().inf() == x.x && p.x().sup() == x.x && p.y().inf() == x.y && p.y().sup() == x.y && p.z().inf() == x.z &&
+           p.z().sup() == x.z;
+}
+bool isExactly(const Point&, const glm::dvec3&) { return false; }  // exact values need no help
+
+// `zeros`: points known to lie on f's plane exactly (f = 0 there; the interval of f would
+// hold 0 without being it, and the clip would throw).
 template <class Kn>
-void clip(std::vector<typename Kn::Point_3>& poly, const HalfSpaceT<Kn>& f) {
+void clip(std::vector<typename Kn::Point_3>& poly, const HalfSpaceT<Kn>& f, const std::array<glm::dvec3, 2>* zeros = nullptr) {
     if (poly.empty()) return;
     using P = typename Kn::Point_3;
     using N = typename Kn::FT;
@@ -63,7 +72,8 @@ void clip(std::vector<typename Kn::Point_3>& poly, const HalfSpaceT<Kn>& f) {
     out.reserve(poly.size() + 1);
     const size_t n = poly.size();
     std::vector<N> v(n);
-    for (size_t i = 0; i < n; ++i) v[i] = f(poly[i]);
+    for (size_t i = 0; i < n; ++i)
+        v[i] = zeros && (isExactly(poly[i], (*zeros)[0]) || isExactly(poly[i], (*zeros)[1])) ? N(0) : f(poly[i]);
     for (size_t i = 0; i < n; ++i) {
         const size_t j = (i + 1) % n;
         const CGAL::Sign si = CGAL::sign(v[i]), sj = CGAL::sign(v[j]);  // uncertain: throws
@@ -110,6 +120,10 @@ struct ExactFrustum::Impl {
     bool degenerate = false;
     bool directional = true;
     std::vector<HalfSpace> sides;  // closed
+    // Per side (the triangle frustum's, without dilation): the two caster vertices that lie
+    // on it exactly, where the interval clip takes the value 0 instead of an interval
+    // around it (a receiver sharing the caster's edge or vertex: a mesh neighbour).
+    std::vector<std::array<glm::dvec3, 2>> sideVertices;
     std::vector<FastHalfSpace> fastSides;
     // Near half-space, completed per query with the bias:
     //   directional: nearN . (x - a) - beta * nearK + dilate > 0, nearK = nearN . d > 0
@@ -319,6 +333,7 @@ ExactFrustum::ExactFrustum(const Triangle& t, const LightGeometry& light, double
         if (inside == CGAL::NEGATIVE) sn = -sn;
         const double dil = dilation > 0 ? dilation * normUpper(sn) : 0.0;
         m.sides.push_back(HalfSpace{sn, o, FT(dil)});
+        if (!(dilation > 0)) m.sideVertices.push_back({t[size_t(e)], t[size_t((e + 1) % 3)]});
         // The double twin: the same formula, the orientation the exact sign chose.
         const glm::dvec3 tp = t[size_t(e)], tq = t[size_t((e + 1) % 3)];
         Bounded3 fn = light.directional ? crossOfDifferences(tq - tp, light.direction)
@@ -528,17 +543,18 @@ bool shadedWhole(const std::vector<typename Kn::Point_3>& poly, const ShadeTest<
 // The receiver clipped by the frustum's closed sides (empty: it misses them), over either
 // kernel.
 template <class Kn>
-std::vector<typename Kn::Point_3> clippedBySides(const std::vector<HalfSpaceT<Kn>>& sides, const Triangle& r) {
+std::vector<typename Kn::Point_3> clippedBySides(const std::vector<HalfSpaceT<Kn>>& sides, const Triangle& r,
+                                                 const std::vector<std::array<glm::dvec3, 2>>& sideVertices) {
     using P = typename Kn::Point_3;
     std::vector<P> poly = {P(r[0].x, r[0].y, r[0].z), P(r[1].x, r[1].y, r[1].z), P(r[2].x, r[2].y, r[2].z)};
-    for (const HalfSpaceT<Kn>& h : sides) {
-        clip(poly, h);
+    for (size_t i = 0; i < sides.size(); ++i) {
+        clip(poly, sides[i], i < sideVertices.size() ? &sideVertices[i] : nullptr);
         if (poly.empty()) break;
     }
     return poly;
 }
 
-std::vector<Point> ExactFrustum::Impl::insideSides(const Triangle& r) const { return clippedBySides<K>(sides, r); }
+std::vector<Point> ExactFrustum::Impl::insideSides(const Triangle& r) const { return clippedBySides<K>(sides, r, sideVertices); }
 
 // The double twins of the sides reject what lies clearly outside one of them, before any
 // interval or exact work (in round-to-nearest: their bounds assume it).
@@ -566,7 +582,7 @@ void ExactFrustum::Impl::makeApprox() {
 }
 
 std::vector<IK::Point_3> ExactFrustum::Impl::iInsideSides(const Triangle& r) const {
-    return clippedBySides<IK>(iSides, r);
+    return clippedBySides<IK>(iSides, r, sideVertices);
 }
 
 std::vector<IHalfSpace> ExactFrustum::Impl::iOpens(double beta) const {
