@@ -246,17 +246,23 @@ Aabb shadowBox(const glm::dvec3* pts, int count, const Light& L, const Aabb& lim
             box = sphere;
         }
     } else {
-        // Ray parameter where the last of the points' rays leaves the window box.
+        // A ray parameter past which no ray from a point of the points' hull is inside the
+        // window box. A ray leaves the box at exit(p) = min over axes of the far slab's
+        // parameter f_a(p), affine in p; exit is concave, so its largest value over the hull
+        // may lie inside it, not at a point given (a terrain triangle larger than the window:
+        // the column through its middle reaches further than those through its corners; a
+        // false cull the exact reference found, issue 34). Bounded by min over axes of the
+        // largest f_a over the points (each f_a affine: its maximum is at a point).
         const glm::dvec3& d = L.direction;
-        double sMax = 0;
-        for (int i = 0; i < count; ++i) {
-            double exit = std::numeric_limits<double>::infinity();
-            for (int a = 0; a < 3; ++a) {
-                if (d[a] > 0) exit = std::min(exit, (limits.max[a] - pts[i][a]) / d[a]);
-                else if (d[a] < 0) exit = std::min(exit, (limits.min[a] - pts[i][a]) / d[a]);
-            }
-            sMax = std::max(sMax, exit);
+        double sMax = std::numeric_limits<double>::infinity();
+        for (int a = 0; a < 3; ++a) {
+            if (d[a] == 0) continue;
+            double far = -std::numeric_limits<double>::infinity();
+            for (int i = 0; i < count; ++i)
+                far = std::max(far, ((d[a] > 0 ? limits.max[a] : limits.min[a]) - pts[i][a]) / d[a]);
+            sMax = std::min(sMax, far);
         }
+        sMax = std::max(sMax, 0.0);
         sMax = sMax * (1 + 1e-9) + margin;
         for (int i = 0; i < count; ++i) box.extend(pts[i] + sMax * d);
     }

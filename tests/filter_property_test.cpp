@@ -469,6 +469,43 @@ TEST(FilterProperty, FastPathWithOccludersNeverShadesWhatTheExactRuleReaches) {
     EXPECT_LT(keptByTheFastPath, shadedAway / 2 + 1);    // and the fast path applies it mostly
 }
 
+// The box of a caster's shadow in the window (shadowBox, the broad phase's query box) holds
+// every column inside the window, also where the caster reaches past the window's box: the
+// farthest ray parameter of a column lies inside the caster there, not at a vertex. From
+// the exact reference's scene 64818 (seed 34): a terrain triangle of 100 m under a window of
+// a few metres, the light travelling up; failed before the fix (the box stopped at the
+// terrain and missed the receiver 2.7 m above it).
+TEST(FilterProperty, ShadowBoxHoldsTheColumnsOfACasterLargerThanTheWindow) {
+    const Triangle caster = {glm::dvec3(0, -1.8177740732030232, 0), glm::dvec3(100, -3.0765995336009029, 100),
+                             glm::dvec3(100, -2.6176208449802996, 0)};
+    Light L;
+    L.type = LightType::Directional;
+    L.direction = glm::dvec3(0.20787588786935532, 0.35448092468598957, -0.91166380276738712);
+    Aabb window;
+    window.min = glm::dvec3(61.85, -1.47, 40.4);
+    window.max = glm::dvec3(64.73, 3.30, 46.24);
+    const glm::dvec3 q(63.215092234067221, 0.14170205587579687, 43.652283387740745);  // a receiver point
+    const Aabb box = shadowBox(caster.data(), 3, L, window, 1e-9);
+    EXPECT_TRUE(q.x >= box.min.x && q.x <= box.max.x && q.y >= box.min.y && q.y <= box.max.y && q.z >= box.min.z &&
+                q.z <= box.max.z)
+        << "box (" << box.min.x << ", " << box.min.y << ", " << box.min.z << ") .. (" << box.max.x << ", " << box.max.y << ", "
+        << box.max.z << ")";
+    // And it holds the column of every point of the caster inside the window (a grid).
+    for (int i = 0; i <= 20; ++i)
+        for (int j = 0; i + j <= 20; ++j) {
+            const glm::dvec3 p = caster[0] + (caster[1] - caster[0]) * (i / 20.0) + (caster[2] - caster[0]) * (j / 20.0);
+            for (double s = 0; s < 200; s += 0.25) {
+                const glm::dvec3 x = p + s * L.direction;
+                const bool inWindow = x.x >= window.min.x && x.x <= window.max.x && x.y >= window.min.y &&
+                                      x.y <= window.max.y && x.z >= window.min.z && x.z <= window.max.z;
+                if (!inWindow) continue;
+                ASSERT_TRUE(x.x >= box.min.x && x.x <= box.max.x && x.y >= box.min.y && x.y <= box.max.y && x.z >= box.min.z &&
+                            x.z <= box.max.z)
+                    << "column point (" << x.x << ", " << x.y << ", " << x.z << ")";
+            }
+        }
+}
+
 // Found by the run above (seed 3434): a point light on the line of a caster's edge
 // (tests/support/point_light_edge_case.h). Seen along z, the light lies on the projected
 // edge, so the caster's cone around it spans a half-plane or more; ShadowQuery::addSlabs
