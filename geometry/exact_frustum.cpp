@@ -368,54 +368,41 @@ glm::dvec3 meanOf(const std::vector<PointT>& poly) {
     return sum / double(poly.size());
 }
 
-// Whether x < 0 / x = 0 / x > 0 certainly: the sign, or kUnknownSign (intervals holding 0).
-constexpr int kUnknownSign = 2;
+// Whether the opaque triangle `o` certainly shades the caster point of every point of the
+// convex polygon `poly`: each lies in o's closed prism along d, and o's point on its ray lies
+// strictly nearer the light than the caster's. Both conditions are affine in the point (the
+// planes are fixed), so the polygon's vertices decide the whole polygon. Over intervals an
+// uncertain sign answers false (conservative: see shadedWhole).
 template <class Num>
-int signOf(const Num& x) {
-    const int p = positive(x), n = positive(-x);
-    return p == 1 ? 1 : n == 1 ? -1 : p == 0 && n == 0 ? 0 : kUnknownSign;
+int certainSign(const Num& x) {
+    return positive(x) == 1 ? 1 : positive(-x) == 1 ? -1 : 0;
 }
-
-// Whether the opaque triangle `o` shades the caster point of every point of the convex
-// polygon `poly`: each lies in o's closed prism along d, and o's point on its ray lies
-// strictly nearer the light than the caster's. Both conditions are affine in the point
-// (the planes are fixed), so the polygon's vertices decide the whole polygon. 1 shades,
-// 0 does not, kUnknownSign when only uncertain signs (intervals) stand between the two:
-// a condition that certainly fails answers 0 whatever else is uncertain, as exactly.
 template <class Kn>
-int shadesWhole(const Triangle& o, const std::vector<typename Kn::Point_3>& poly, const ShadeTest<Kn>& t) {
+bool shadesWhole(const Triangle& o, const std::vector<typename Kn::Point_3>& poly, const ShadeTest<Kn>& t) {
     using P = typename Kn::Point_3;
     using V = typename Kn::Vector_3;
     using N = typename Kn::FT;
     const P v[3] = {P(o[0].x, o[0].y, o[0].z), P(o[1].x, o[1].y, o[1].z), P(o[2].x, o[2].y, o[2].z)};
     const V m = CGAL::cross_product(v[1] - v[0], v[2] - v[0]);
     const N md = m * t.d;
-    const int sm = signOf(md);
-    if (sm == 0) return 0;  // edge-on to the light: shades no area
-    if (sm == kUnknownSign) return kUnknownSign;
-    bool unknown = false;
+    const int sm = certainSign(md);
+    if (sm == 0) return false;  // edge-on to the light (or uncertain): shades no area
     V side[3];
     for (int e = 0; e < 3; ++e) {
         side[e] = CGAL::cross_product(v[(e + 1) % 3] - v[e], t.d);
-        const int inward = signOf(side[e] * (v[(e + 2) % 3] - v[e]));
-        if (inward == 0) return 0;
-        if (inward == kUnknownSign) return kUnknownSign;  // which side is inside is not known
+        const int inward = certainSign(side[e] * (v[(e + 2) % 3] - v[e]));
+        if (inward == 0) return false;
         if (inward < 0) side[e] = -side[e];
     }
     for (const P& q : poly) {
-        for (int e = 0; e < 3; ++e) {
-            const int s = signOf(side[e] * (q - v[e]));
-            if (s == -1) return 0;
-            unknown |= s == kUnknownSign;
-        }
+        for (int e = 0; e < 3; ++e)
+            if (positive(-(side[e] * (q - v[e]))) != 0) return false;  // not certainly >= 0
         // alpha - beta > 0, alpha = m . (q - v0) / md, beta = n . (q - a) / nd, nd > 0.
         N num = (m * (q - v[0])) * t.nd - (t.n * (q - t.a)) * md;
         if (sm < 0) num = -num;
-        const int s = signOf(num);
-        if (s == 0 || s == -1) return 0;
-        unknown |= s == kUnknownSign;
+        if (certainSign(num) <= 0) return false;
     }
-    return unknown ? kUnknownSign : 1;
+    return true;
 }
 
 // True when some one occluder the source gives for the polygon's box shades all of it.
@@ -531,7 +518,7 @@ bool shadedWhole(const std::vector<typename Kn::Point_3>& poly, const ShadeTest<
     // tests/filter_property_test.cpp compares the fast path with the exact rule (never
     // shaded where the exact rule is not, and how often it keeps what the exact rule shades).
     for (const Triangle& o : occluders)
-        if (shadesWhole<Kn>(o, poly, t) == 1) {
+        if (shadesWhole<Kn>(o, poly, t)) {
             t.source->shadedSome.store(true, std::memory_order_relaxed);
             return true;
         }

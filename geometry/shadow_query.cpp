@@ -98,18 +98,21 @@ void ShadowQuery::addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm:
     }
 }
 
+// A plane's double normal n is within n.error() of the exact one n*: a point with
+// n* . (x - o) >= -r |n*| has n . (x - o) >= -(maxOf(n.error()) |x - o|_1 + r |n| +
+// r |n.error()|_1): rel and (with the margin) abs. Moved outward by the dilation r: k = r |n|
+// (rounded up, as the exact test does).
+ShadowQuery::HalfSpace ShadowQuery::fromBounded(const Bounded3& nb, const glm::dvec3& o, double dilation, double margin) {
+    const glm::dvec3 n = nb.value(), err = nb.error();
+    const double len = glm::length(n);
+    return HalfSpace{n, o, dilation > 0 ? dilation * len * (1 + 1e-9) : 0.0, maxOf(err) * (1 + gamma(2)),
+                     margin * len + dilation * (err.x + err.y + err.z) * 2};
+}
+
 ShadowQuery::ShadowQuery(const Triangle& t, const LightGeometry& light, double dilation, double margin) {
     // Moving a half-space outward by the dilation r: k = r |n| (rounded up, as the exact test does).
-    auto grow = [&](const glm::dvec3& n) { return dilation > 0 ? dilation * glm::length(n) * (1 + 1e-9) : 0.0; };
-    // As FrustumFilter: a sign is trusted only when certain (core/rounding.h). A plane's
-    // double normal n is within n.error() of the exact one n*: a point with
-    // n* . (x - o) >= -r |n*| has n . (x - o) >= -(maxOf(n.error()) |x - o|_1 + r |n| +
-    // r |n.error()|_1): rel and (with the margin) abs.
-    auto plane = [&](Bounded3 nb, const glm::dvec3& o) {
-        const glm::dvec3 n = nb.value(), err = nb.error();
-        const double len = glm::length(n);
-        return HalfSpace{n, o, grow(n), maxOf(err) * (1 + gamma(2)), margin * len + dilation * (err.x + err.y + err.z) * 2};
-    };
+    // As FrustumFilter: a sign is trusted only when certain (core/rounding.h).
+    auto plane = [&](const Bounded3& nb, const glm::dvec3& o) { return fromBounded(nb, o, dilation, margin); };
     Bounded3 n = crossOfDifferences(t[1] - t[0], t[2] - t[0]);
     const int facing = certainSign(light.directional ? BoundedPlane(n, glm::dvec3(0.0), exactly(0.0)).at(light.direction)
                                                      : BoundedPlane(n, light.position, exactly(0.0)).at(t[0]));
@@ -194,12 +197,11 @@ ShadowQuery ShadowQuery::ofCluster(const Aabb& b, const RowTransform& m, const L
     // f . (L + l (x - L)) = f . L + l (f . x - f . L) <= f . x.
     for (int i = 0; i < 3; ++i) {
         // The normal of the faces spanned by the other two axes, with its rounding bound.
-        const Bounded3 fb = cross(exactly(m.rows[size_t((i + 1) % 3)]), exactly(m.rows[size_t((i + 2) % 3)]));
-        glm::dvec3 f = fb.value();
+        Bounded3 fb = cross(exactly(m.rows[size_t((i + 1) % 3)]), exactly(m.rows[size_t((i + 2) % 3)]));
         if (light.directional) {
             const int along = certainSign(dot(fb, exactly(light.direction)));
             if (along == 0) continue;  // edge-on: left out
-            if (along > 0) f = -f;     // now f* . d < 0
+            if (along > 0) fb = -fb;   // now f* . d < 0
         } else {
             // The side of the box the light is on, if it is certainly outside the slab of
             // these faces (beyond every corner).
@@ -209,13 +211,9 @@ ShadowQuery ShadowQuery::ofCluster(const Aabb& b, const RowTransform& m, const L
                 side = sk == 0 ? 2 : side == 0 || side == sk ? sk : 2;
             }
             if (side == 2) continue;  // L between the two faces (or too near one): neither bounds the cone
-            if (side < 0) f = -f;
+            if (side < 0) fb = -fb;
         }
-        const double len = glm::length(f);
-        const glm::dvec3 err = fb.error();
-        add(q.hs_, q.count_,
-            HalfSpace{-f, extreme(f, false), dilation > 0 ? dilation * len * (1 + 1e-9) : 0.0, maxOf(err) * (1 + gamma(2)),
-                      margin * len + dilation * (err.x + err.y + err.z) * 2});
+        add(q.hs_, q.count_, fromBounded(-fb, extreme(fb.value(), false), dilation, margin));
     }
     // Slabs (or wedges) of the box's own axes.
     for (int i = 0; i < 3; ++i) {

@@ -104,6 +104,9 @@ private:
         double rel = 0, abs = 0;
     };
     static void add(std::array<HalfSpace, 16>& to, int& count, const HalfSpace& h) { to[size_t(count++)] = h; }
+    // The half-space n . (x - o) >= 0 of a normal known within its rounding bound, grown by
+    // the dilation, with the allowances that bound covers (shadow_query.cpp).
+    static HalfSpace fromBounded(const Bounded3& n, const glm::dvec3& o, double dilation, double margin);
     // Directional lights: the two half-spaces of the slab normal to d x axis holding the caster.
     void addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm::dvec3& axis) const;
     bool tooNear(const Aabb& lsBox) const;
