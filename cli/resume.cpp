@@ -63,7 +63,9 @@ uint64_t spaceInputHash(const SpaceSource& space, const BakeOptions& opt) {
     h.pod(uint64_t(space.chunks().size()));
     for (const auto& [coord, e] : space.chunks()) {
         h.pod(uint8_t(1)).pod(e.objectsHash);
-        h.pod(e.contentHash);  // the text each shard rewrites
+        // The text each shard rewrites, without the masks: the bake's output, which shards
+        // baked in place one after another have partly written before the next one reads.
+        h.pod(e.contentWithoutShadowsHash);
     }
     return h.value();
 }

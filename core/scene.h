@@ -132,6 +132,12 @@ struct ChunkFile {
     // Hash of the bytes the objects were read from: the bake writes the file only while it
     // still holds exactly these bytes (an edit made during the bake is never overwritten).
     uint64_t contentHash = 0;
+    // Hash of the document apart from its objects' <shadow> elements (the bake's output):
+    // elements, attributes, text and comments in order, text trimmed and whitespace between
+    // tags left out, since rewriting a mask inserts or removes lines and indentation. Equal
+    // before and after any bake wrote masks into the file, so shards baked in place one
+    // after another still hash the same inputs (cli/resume.cpp's spaceInputHash).
+    uint64_t contentWithoutShadowsHash = 0;
     std::vector<ChunkObject> objects;
 };
 

@@ -520,12 +520,52 @@ Expected<SpaceSettings> readSpaceSettings(const std::string& spaceDir, const std
     return st;
 }
 
+namespace {
+
+// ChunkFile::contentWithoutShadowsHash: every node in document order, skipping the <shadow>
+// children of the root's <model> and <terrain> elements (the only ones the chunk writer
+// rewrites) and whitespace-only text. An element hashes its name, its attributes in order
+// and its children between an open and a close marker, so `<a/>` and `<a></a>` are equal
+// (the writer turns the first into the second) while nesting still counts.
+void hashWithoutShadows(const tinyxml2::XMLNode* node, int depth, Hasher& h) {
+    for (const tinyxml2::XMLNode* n = node->FirstChild(); n; n = n->NextSibling()) {
+        if (const tinyxml2::XMLElement* e = n->ToElement()) {
+            const std::string name = e->Name();
+            const bool objectChild = depth == 2 && name == "shadow";
+            if (objectChild) {
+                const tinyxml2::XMLElement* parent = node->ToElement();
+                const std::string parentName = parent ? parent->Name() : "";
+                if (parentName == "model" || parentName == "terrain") continue;
+            }
+            h.pod(uint8_t('<')).str(name);
+            for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next())
+                h.pod(uint8_t('=')).str(a->Name()).str(a->Value());
+            hashWithoutShadows(e, depth + 1, h);
+            h.pod(uint8_t('>'));
+        } else if (const tinyxml2::XMLText* t = n->ToText()) {
+            const std::string text = trim(t->Value());
+            if (!text.empty()) h.pod(uint8_t(t->CData() ? 'c' : 't')).str(text);
+        } else if (n->ToComment()) {
+            h.pod(uint8_t('!')).str(n->Value());
+        } else if (n->ToDeclaration()) {
+            h.pod(uint8_t('?')).str(n->Value());
+        } else {
+            h.pod(uint8_t('u')).str(n->Value());  // DOCTYPE and the like
+        }
+    }
+}
+
+}  // namespace
+
 Expected<ChunkFile> readChunkFile(const std::string& path, ChunkCoord coord, std::vector<Diagnostic>& diagnostics) {
     ChunkFile cf;
     cf.path = path;
     cf.coord = coord;
     tinyxml2::XMLDocument doc(true, tinyxml2::PRESERVE_WHITESPACE);
     if (Status s = loadXml(path, doc, "chunk file", ErrorKind::BadInput, &cf.contentHash); !s) return s.error();
+    Hasher withoutShadows;
+    hashWithoutShadows(&doc, 0, withoutShadows);
+    cf.contentWithoutShadowsHash = withoutShadows.value();
     int index = 0;
     for (const tinyxml2::XMLElement* e = doc.RootElement()->FirstChildElement(); e; e = e->NextSiblingElement()) {
         std::string n = e->Name();

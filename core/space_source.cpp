@@ -345,7 +345,7 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
         for (const ChunkObject& o : cf->objects)
             if (!o.resource.empty()) namedResources.insert(src.fullPath(o.resource));
         if (Status s = src.resolve(*cf, keep != nullptr, resourceWarnings); !s) return s.error();
-        ChunkEntry entry{path, cf->contentHash, 0, 0, {}};
+        ChunkEntry entry{path, cf->contentHash, cf->contentWithoutShadowsHash, 0, 0, {}};
         Hasher h;
         h.pod(coord);
         for (const ChunkObject& o : cf->objects) {

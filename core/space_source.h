@@ -46,6 +46,7 @@ struct ResourceSummary {
 struct ChunkEntry {
     std::string path;
     uint64_t contentHash = 0;  // of the bytes the scan read (ChunkFile::contentHash)
+    uint64_t contentWithoutShadowsHash = 0;  // the same bytes without the bake's output (ChunkFile)
     size_t usableObjects = 0;  // objects not skipped
     // Hash of what the stages read of it (bake --resume, shards): every object's element,
     // kind, resource, uuid, flags and placement, and its mesh's or heightfield's content.

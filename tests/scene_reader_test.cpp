@@ -8,6 +8,7 @@
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
+#include "core/chunk_writer.h"
 #include "core/scene.h"
 #include "tests/test_files.h"
 
@@ -565,4 +566,63 @@ TEST(SpaceLoader, MissingResourcesSkipObjectsAndBadNamesAreIgnored) {
     int lines = 0;
     for (const Diagnostic& d : s->diagnostics) lines += d.line;
     EXPECT_EQ(lines, 3 + 4) << "the objects' lines are named";
+}
+
+// The inputs hash of sharded bakes (ChunkFile::contentWithoutShadowsHash) must not see the
+// masks a bake writes, in any of the writer's layouts (a model on many lines, one on one
+// line, a self-closing element, a mask replaced, a second <shadow> removed), and must see
+// every other edit.
+TEST(ChunkFile, HashWithoutShadowsIgnoresTheMasksAndSeesEveryOtherEdit) {
+    const fs::path dir = freshTestDir();
+    const std::string original = R"(<chunk>
+  <!-- keep me -->
+  <editorInfo author="a"><note> n </note></editorInfo>
+  <model>
+    <resource> a.obj </resource>
+    <uuid> 1 </uuid>
+  </model>
+  <model><resource> b.obj </resource></model>
+  <model>
+    <resource> c.obj </resource>
+    <shadow> 7 </shadow>
+    <shadow> 9 </shadow>
+  </model>
+  <terrain/>
+</chunk>
+)";
+    auto hashOf = [&](const std::string& text) {
+        writeText(dir / "00000000o.chunk", text);
+        std::vector<Diagnostic> diags;
+        Expected<ChunkFile> cf = readChunkFile((dir / "00000000o.chunk").string(), {0, 0}, diags);
+        EXPECT_TRUE(cf) << cf.error().what();
+        return cf ? cf->contentWithoutShadowsHash : 0;
+    };
+    const uint64_t h0 = hashOf(original);
+    auto masks = [](uint32_t m) {
+        std::vector<ShadowWrite> w(4);
+        for (int k = 0; k < 3; ++k) w[k].mask = m, w[k].groupMasks = {m, m + 1};
+        w[3].terrain = true, w[3].mask = m;
+        return w;
+    };
+    Expected<std::string> once = rewriteChunkShadows(original, "test", masks(1));
+    ASSERT_TRUE(once) << once.error().what();
+    ASSERT_NE(*once, original);
+    EXPECT_EQ(hashOf(*once), h0) << *once;
+    Expected<std::string> twice = rewriteChunkShadows(*once, "test", masks(6));
+    ASSERT_TRUE(twice);
+    EXPECT_EQ(hashOf(*twice), h0) << *twice;
+    EXPECT_NE(hashOf(*once), 0u);
+
+    auto edited = [&](const std::string& from, const std::string& to) {
+        std::string text = original;
+        const size_t at = text.find(from);
+        EXPECT_NE(at, std::string::npos) << from;
+        return hashOf(text.replace(at, from.size(), to));
+    };
+    EXPECT_NE(edited("keep me", "keep it"), h0) << "a comment";
+    EXPECT_NE(edited("author=\"a\"", "author=\"b\""), h0) << "an attribute";
+    EXPECT_NE(edited("<note> n </note>", "<note> n </note><shadow> 1 </shadow>"), h0) << "a <shadow> the bake does not write";
+    EXPECT_NE(edited("<uuid> 1 </uuid>", "<uuid> 2 </uuid>"), h0) << "an object's text";
+    EXPECT_NE(edited("<terrain/>", "<terrain><x/></terrain>"), h0) << "a child";
+    EXPECT_EQ(edited("<terrain/>", "<terrain></terrain>"), h0) << "the same element";
 }

@@ -205,3 +205,43 @@ TEST(Shards, MergeRefusesShardsThatAreNotOneBake) {
     EXPECT_FALSE(m->shard) << "the merged file is a whole bake's";
     EXPECT_EQ(m->chunks.size(), 12u);
 }
+
+// Shards baked in place one after another (a busy cluster starting an array's tasks at
+// different times, a dead shard rerun later): each later shard reads chunk files into which
+// the earlier ones wrote masks. The masks are the bake's output, not its input, so the
+// shards are still one bake: the merge equals the single bake, and a shard rerun with
+// --resume finds its chunks up to date although its neighbours' files changed since.
+TEST(Shards, InPlaceShardsBakedOneAfterAnotherMergeToTheSingleBake) {
+    const fs::path dir = freshTestDir();
+    const std::string space = writeSmallWorld(dir);
+    // The reference reads the same space directory (the results name it) before any shard.
+    ASSERT_EQ(bake("'" + space + "' --out '" + (dir / "whole").string() + "' --results '" + (dir / "whole.json").string() + "'",
+                   dir, "whole"),
+              0)
+        << readText(dir / "whole.err");
+    const auto original = chunkTexts(space);
+    std::string shardFiles;
+    for (int k = 1; k <= 3; ++k) {
+        const std::string name = "shard-" + std::to_string(k);
+        ASSERT_EQ(bake("'" + space + "' --results '" + (dir / (name + ".json")).string() + "' --resume --shard " +
+                           std::to_string(k) + "/3",
+                       dir, name),
+                  0)
+            << readText(dir / (name + ".err"));
+        shardFiles += " '" + (dir / (name + ".json")).string() + "'";
+    }
+    ASSERT_NE(chunkTexts(space), original) << "the shards wrote masks in place";
+    const fs::path merged = dir / "merged.json";
+    ASSERT_EQ(merge("'" + merged.string() + "'" + shardFiles, dir, "merge"), 0) << readText(dir / "merge.err");
+    EXPECT_EQ(readText(merged), readText(dir / "whole.json")) << "merged results differ from the single bake's";
+    EXPECT_EQ(chunkTexts(space), chunkTexts(dir / "whole")) << "chunk files differ from the single bake's";
+
+    // Shard 1 again: the masks shards 2 and 3 wrote after it are no edit of its inputs.
+    const fs::path state = fs::path(space) / ".shadowcull-bake-state.shard-1-of-3.json";
+    const std::string stateBefore = readText(state);
+    ASSERT_FALSE(stateBefore.empty());
+    ASSERT_EQ(bake("'" + space + "' --results '" + (dir / "again.json").string() + "' --resume --shard 1/3", dir, "again"), 0)
+        << readText(dir / "again.err");
+    EXPECT_EQ(readText(state), stateBefore) << "the rerun baked chunks again";
+    EXPECT_EQ(readText(dir / "again.json"), readText(dir / "shard-1.json"));
+}

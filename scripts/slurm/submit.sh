@@ -11,7 +11,8 @@
 # build/bin/shadowcull), SHADOWCULL_OUT (write baked chunk files there instead of in place),
 # SHADOWCULL_BAKE_ARGS (more bake options for every shard), SHADOWCULL_SBATCH_ARGS (more
 # sbatch options for both jobs, e.g. "--partition=bake --time=02:00:00"),
-# SHADOWCULL_CPUS (CPUs per shard, default 1: the shard's --threads).
+# SHADOWCULL_CPUS (CPUs per shard, default 1: the shard's --threads), SHADOWCULL_MAX_RUNNING
+# (at most this many shards at once: the array's %N throttle; default no limit).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 if [ $# -lt 2 ] || [ $# -gt 3 ]; then
@@ -32,9 +33,11 @@ mkdir -p "$work/logs"
 export SHADOWCULL="$exe" SHADOWCULL_SPACE="$space" SHADOWCULL_SHARDS="$n" SHADOWCULL_WORK="$work" SHADOWCULL_OUT="$out"
 export SHADOWCULL_BAKE_ARGS="${SHADOWCULL_BAKE_ARGS:-}"
 cpus="${SHADOWCULL_CPUS:-1}"
+throttle="${SHADOWCULL_MAX_RUNNING:+%$SHADOWCULL_MAX_RUNNING}"
+case "${SHADOWCULL_MAX_RUNNING:-1}" in ''|*[!0-9]*|0) echo "$0: SHADOWCULL_MAX_RUNNING must be a positive integer" >&2; exit 2 ;; esac
 # shellcheck disable=SC2206
 extra=(${SHADOWCULL_SBATCH_ARGS:-})
-bake_id=$(sbatch --parsable --export=ALL --array="1-$n" --cpus-per-task="$cpus" --chdir="$work" \
+bake_id=$(sbatch --parsable --export=ALL --array="1-$n$throttle" --cpus-per-task="$cpus" --chdir="$work" \
   --output="$work/logs/bake-%A_%a.log" "${extra[@]}" "$here/bake.sbatch")
 bake_id="${bake_id%%;*}"  # "ID;cluster" on federated clusters
 merge_id=$(sbatch --parsable --export=ALL --dependency="afterok:$bake_id" --kill-on-invalid-dep=yes --chdir="$work" \

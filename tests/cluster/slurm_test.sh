@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Issue 16: a real one-node Slurm cluster on this machine (Debian's slurm-wlm and munge),
-# started and stopped by this script, runs scripts/slurm/submit.sh on a generated world in
-# 4 shards; the merged results and every chunk file must equal a single-process bake's,
-# byte for byte.
+# A real one-node Slurm cluster on this machine (Debian's slurm-wlm and munge), started and
+# stopped by this script, runs scripts/slurm/submit.sh on a generated world in 4 shards,
+# once writing to another directory with every shard at once and once in place with one
+# shard at a time; the merged results and every chunk file must equal a single-process
+# bake's, byte for byte.
 #
 #   tests/cluster/slurm_test.sh [BUILD_BIN_DIR]     (default: build/bin; run as root)
 #
@@ -185,3 +186,33 @@ done
 [ "$n" -eq "$(ls "$tmp/sharded" | grep -c '\.chunk$')" ] || { echo "FAIL: the farm wrote other chunk files"; exit 1; }
 [ "$n" -gt 0 ] || { echo "FAIL: no chunk files"; exit 1; }
 echo "PASS: Slurm farm (4 shards + merge) equals the single-process bake: results.json and $n chunk files byte for byte"
+
+# 7. In place, one shard at a time (the array throttled to one task: each later shard reads
+# chunk files the earlier ones wrote masks into), then the merge: still one bake. The
+# reference reads the same space directory, since the results name it.
+inplace="$tmp/inplace"
+cp -r "$space" "$inplace"
+# shellcheck disable=SC2086
+"$bin/shadowcull" bake "$inplace" --out "$tmp/whole-inplace" --results "$tmp/whole-inplace.json" --quiet $bake_args --threads 2
+out="$(SHADOWCULL="$bin/shadowcull" SHADOWCULL_MAX_RUNNING=1 SHADOWCULL_BAKE_ARGS="$bake_args" \
+  "$root/scripts/slurm/submit.sh" "$inplace" 4 "$tmp/farm-inplace")"
+echo "$out"
+bake_id="$(echo "$out" | sed -n 's/^bake array: \([0-9]*\).*/\1/p')"
+merge_id="$(echo "$out" | sed -n 's/^merge: \([0-9]*\).*/\1/p')"
+[ -n "$bake_id" ] && [ -n "$merge_id" ] || { echo "FAIL: submit.sh printed no job ids"; exit 1; }
+scontrol show job "$bake_id" | grep -q 'ArrayTaskThrottle=1' || { echo "FAIL: the array is not throttled to one task"; exit 1; }
+for _ in $(seq 1 1200); do
+  merge_state="$(job_state "$merge_id")"
+  case "$merge_state" in COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|OUT_OF_MEMORY|DEADLINE) break ;; esac
+  sleep 0.5
+done
+echo "in-place merge job $merge_id: $merge_state"
+[ "$merge_state" = "COMPLETED" ] || { echo "FAIL: the in-place merge job ended $merge_state"; cat "$tmp"/farm-inplace/logs/merge-*.log; exit 1; }
+cmp "$tmp/whole-inplace.json" "$tmp/farm-inplace/results.json" || { echo "FAIL: in-place merged results differ from the single bake's"; exit 1; }
+n=0
+for f in "$tmp"/whole-inplace/*.chunk; do
+  cmp "$f" "$inplace/$(basename "$f")" || { echo "FAIL: in place, $(basename "$f") differs"; exit 1; }
+  n=$((n + 1))
+done
+[ "$n" -gt 0 ] || { echo "FAIL: no chunk files"; exit 1; }
+echo "PASS: in place, one shard at a time, then merged: results.json and $n chunk files equal the single bake's"
