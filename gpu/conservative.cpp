@@ -5,6 +5,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "core/clip_polygon.h"
 #include "core/rounding.h"
 
 namespace shadowcull::gpu {
@@ -17,24 +18,22 @@ bool lexLess(const glm::dvec3& a, const glm::dvec3& b) {
     return a.z < b.z;
 }
 
-// Sutherland-Hodgman against f(v) >= 0; the crossing point is computed from the
-// lexicographically lesser endpoint, so two triangles sharing an edge get the same point.
+// Sutherland-Hodgman against f(v) >= 0 (core/clip_polygon.h); the crossing point is
+// computed from the lexicographically lesser endpoint, so two triangles sharing an edge get
+// the same point.
 template <class F>
 int clipPolygon(const glm::dvec3* in, int n, glm::dvec3* out, F f) {
     int m = 0;
-    for (int i = 0; i < n; ++i) {
-        const glm::dvec3& c = in[i];
-        const glm::dvec3& d = in[(i + 1) % n];
-        const double fc = f(c), fd = f(d);
-        if (fc >= 0) out[m++] = c;
-        if ((fc >= 0) != (fd >= 0)) {
+    shadowcull::clipPolygon(
+        in, size_t(n), f, closedSide,
+        [](const glm::dvec3& c, const glm::dvec3& d, double fc, double fd) {
             const bool cFirst = lexLess(c, d);
             const glm::dvec3& p = cFirst ? c : d;
             const glm::dvec3& q = cFirst ? d : c;
             const double fp = cFirst ? fc : fd, fq = cFirst ? fd : fc;
-            out[m++] = p + (q - p) * (fp / (fp - fq));
-        }
-    }
+            return p + (q - p) * (fp / (fp - fq));
+        },
+        [&](const glm::dvec3& p) { out[m++] = p; });
     return m;
 }
 

@@ -1,0 +1,112 @@
+// The geometry stage's receivers: receiver triangles placed in the window and the receiver
+// rules (semantics.md: facing, range and cone, the terrain rule), evaluated once per
+// receiver and light and shared by the stage's threads.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/window.h"
+#include "geometry/exact_frustum.h"
+
+namespace shadowcull::geometry {
+
+// A receiver triangle as the rules and the exact test see it.
+struct Receiver {
+    Triangle tri;  // window-local
+    Aabb box;
+    bool twoSided = false, mirrored = false, terrain = false;
+};
+
+// The triangle's box (exact: its vertices' extremes).
+inline Aabb triangleBox(const Triangle& t) {
+    Aabb b;
+    for (const glm::dvec3& p : t) b.extend(p);
+    return b;
+}
+
+// True when every point of the box lies deeper than the tolerance under the terrain
+// (conservative: the box's top against the lowest terrain sample around it).
+bool underTerrain(const BakeWindow& w, const std::array<glm::dvec3, 2>& box, double margin);
+
+// Per receiver triangle (object, triangle) and light, computed on first use (most
+// receivers of a window are never tested; an object's table is made when a query first
+// reaches it): -1 when the receiver rules exclude it, else a lower bound of the bias
+// (metres) that applies to it; and where the terrain rule applies, the receiver's part
+// above the ground (partAboveGround: once per receiver, not per caster triangle). Safe
+// to call from several threads: a value is computed again at worst, always the same.
+class ReceiverRules {
+public:
+    // `bound`: also compute the part above the ground (off for the exhaustive reference,
+    // which uses no double filter beyond the lowest ground under a receiver's box).
+    ReceiverRules(const BakeWindow& w, const Light& L, const LightGeometry& lg, double margin, bool bound);
+    ~ReceiverRules();
+    ReceiverRules(const ReceiverRules&) = delete;
+    ReceiverRules& operator=(const ReceiverRules&) = delete;
+
+    // `receiver()` makes the receiver when the value is not known yet. `above`, when given,
+    // receives the receiver's part above the ground (nullptr: the terrain rule gives no
+    // bound there; check it only when the result is >= 0).
+    template <class Make>
+    double beta(uint32_t object, uint32_t triangle, const Make& receiver, const std::vector<glm::dvec3>** above = nullptr) const {
+        // Two levels, each made on first touch: a dense mesh's queries touch a few of its
+        // 100k+ triangles, and a table of them all, made and cleared per object, window and
+        // light, would cost more than the queries.
+        std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
+        if (!table) {
+            const size_t n = blockCount(object);
+            auto* fresh = new std::atomic<Block*>[n];
+            for (size_t i = 0; i < n; ++i) fresh[i].store(nullptr, std::memory_order_relaxed);
+            if (tables_[object].compare_exchange_strong(table, fresh, std::memory_order_acq_rel)) table = fresh;
+            else delete[] fresh;  // another thread's table won; `table` now holds it
+        }
+        std::atomic<Block*>& slot = table[triangle / kBlock];
+        Block* block = slot.load(std::memory_order_acquire);
+        if (!block) {
+            auto* fresh = new Block;
+            if (slot.compare_exchange_strong(block, fresh, std::memory_order_acq_rel)) block = fresh;
+            else delete fresh;
+        }
+        Entry& e = block->entries[triangle % kBlock];
+        double b = e.beta.load(std::memory_order_acquire);  // after the part it publishes
+        if (b == kUnknown) {
+            b = compute(receiver(), e);
+            e.beta.store(b, std::memory_order_release);
+        }
+        if (above) *above = e.part.load(std::memory_order_acquire);
+        return b;
+    }
+
+private:
+    static constexpr double kUnknown = -2.0;  // every computed value is -1 or >= 0
+    static constexpr size_t kBlock = 64;      // triangles per block of the table
+    struct Entry {
+        std::atomic<double> beta{kUnknown};
+        std::atomic<const std::vector<glm::dvec3>*> part{nullptr};  // owned; set before beta
+    };
+    struct Block {
+        Entry entries[kBlock];
+        ~Block() {
+            for (Entry& e : entries) delete e.part.load(std::memory_order_relaxed);
+        }
+    };
+    size_t blockCount(size_t object) const { return (w_.objects[object].mesh->triangles.size() + kBlock - 1) / kBlock; }
+    // -1 when the rules exclude the receiver, else its bias; publishes the part above the
+    // ground in `e` (before the caller publishes the value).
+    double compute(const Receiver& r, Entry& e) const;
+    // The bias, and for directional lights the slope term (constant over a triangle).
+    double bias(const Receiver& r) const;
+
+    const BakeWindow& w_;
+    const Light& L_;
+    LightGeometry lg_;
+    double margin_;
+    bool bound_;
+    mutable std::vector<std::atomic<std::atomic<Block*>*>> tables_;
+};
+
+}  // namespace shadowcull::geometry
