@@ -81,7 +81,7 @@ struct BakeOptions {
     // of every chunk reads it (--chunk reads only the named chunks and their neighbours).
     std::vector<ChunkCoord> bakeOnly;
     // Benchmarks only (bake_bench --window-only): the analytic bake's windows are the
-    // `neighbours` rectangle, as before receivers became the whole space (issue 33). NOT
+    // `neighbours` rectangle, as before receivers became the whole space. NOT
     // conservative against the engine: a shadow landing beyond the rectangle is not seen,
     // and its caster may be written 0. It exists to measure what whole-space receivers cost.
     bool neighbourWindows = false;

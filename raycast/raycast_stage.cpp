@@ -421,6 +421,158 @@ struct Tracer {
     }
 };
 
+// The tracer of a window's scene, with margins well above float rounding of window-local
+// coordinates (~6e-8 relative) for Embree's distances, and 1e-9 of the same scale for
+// depths recomputed in double (far above double rounding; depthOf keeps the float value
+// where the line is nearly edge-on). Point and spot lights widen both by their position
+// and range.
+Tracer makeTracer(const BakeWindow& window, const WindowScene& scene, const RaycastOptions& opt) {
+    const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
+    const double diag = glm::length(window.lsBounds.max - window.lsBounds.min);
+    const double scale = std::max({ext.x, ext.y, ext.z}) + diag;
+    Tracer tracer{window, scene.all(), scene.opaque(), opt, 1e-6 * scale + 1e-6, 1e-9 * scale + 1e-12, diag + 1.0};
+    for (const Light& L : window.lsLights)
+        if (L.type != LightType::Directional) {
+            tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
+            tracer.exactEps = std::max(tracer.exactEps, 1e-9 * (glm::length(L.position) + L.range) + 1e-12);
+        }
+    return tracer;
+}
+
+// The receiver-side searches (receiver_targets.h): the bits of large casters the group's
+// own samples left undecided, one search per (group, light).
+std::vector<WitnessSearch> receiverSideSearches(const BakeWindow& window, const ChunkVerdicts& cv, const RaycastOptions& opt) {
+    std::vector<WitnessSearch> out;
+    for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+        if (cv.objects[oi].windowObject < 0) continue;
+        const WindowObject& o = window.objects[size_t(cv.objects[oi].windowObject)];
+        for (int g = 0; g < cv.objects[oi].groupCount; ++g) {
+            bool large = false, checked = false;
+            for (int l = 0; l < cv.lightCount; ++l) {
+                if (cv.at(oi, g, l).verdict != Verdict::Undecided) continue;
+                if (!checked) {
+                    large = isLargeCaster(o, uint32_t(g), opt.areaSamples, opt.largeCasterSpacing);
+                    checked = true;
+                }
+                if (!large) break;
+                WitnessSearch ws{oi, g, l, {}};
+                ws.throughReceivers = true;
+                out.push_back(std::move(ws));
+            }
+        }
+    }
+    return out;
+}
+
+// One pass of witness searches over a window: every search's targets, each light it asks
+// for that is still undecided; in parallel over the searches (TBB).
+struct SearchPass {
+    const Tracer& tracer;
+    const BakeWindow& window;
+    ChunkVerdicts& cv;
+    const RaycastOptions& opt;
+    GroupSampleCache& samples;
+    std::atomic<uint64_t>& rays;
+    std::atomic<uint64_t>& kept;
+    std::atomic<uint64_t>& examined;
+
+    // `countExamined`: the bits count once per stage run (the receiver-side pass examines
+    // bits the first one already counted).
+    void run(std::vector<WitnessSearch>& tasks, const char* why, bool countExamined) const {
+        tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
+            // A signal: the searches not begun stay undecided; the stage then stops.
+            if (stopRequested()) return;
+            // Denormals in traversal cost ~100x per operation; the geometry never needs them.
+            const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);
+            searchTask(tasks[ti], why, countExamined);
+        });
+    }
+
+    void searchTask(WitnessSearch& task, const char* why, bool countExamined) const {
+        const ObjectVerdicts& ov = cv.objects[task.object];
+        const uint32_t object = uint32_t(ov.windowObject);
+        const bool ownSamples = task.targets.empty() && !task.throughReceivers;
+        if (task.targets.empty()) {
+            if (task.throughReceivers && task.light >= 0)
+                task.targets = receiverTargets(window, object, uint32_t(task.group), window.lsLights[size_t(task.light)],
+                                               opt.receiverSamples, samples);
+            else if (!task.throughReceivers)
+                task.targets = samples.placed(window.objects[object], uint32_t(task.group));
+        }
+        uint64_t localRays = 0;
+        for (int l = 0; l < cv.lightCount; ++l) {
+            if (task.light >= 0 && l != task.light) continue;
+            Decision& d = cv.at(task.object, task.group, l);
+            if (d.verdict != Verdict::Undecided) continue;
+            if (countExamined) ++examined;
+            searchBit(task, object, window.lsLights[size_t(l)], ownSamples, d, why, localRays);
+        }
+        rays += localRays;
+    }
+
+    // True when a ray through one of `points` is a witness (the bit is then decided); `lit`
+    // counts those with a clear segment. Targets in packets of 16: an occlusion packet drops
+    // those whose line is blocked before the group (most of them where a bit ends
+    // undecided), then closest hits examine the rest in order until one is a witness.
+    bool searchThrough(const WitnessSearch& task, uint32_t object, const Light& L, const std::vector<glm::dvec3>& points,
+                       Decision& d, const char* why, size_t& lit, uint64_t& localRays) const {
+        for (size_t b = 0; b < points.size(); b += 16) {
+            const int count = int(std::min<size_t>(16, points.size() - b));
+            bool clear[16];
+            tracer.clearSegments(L, object, &points[b], count, clear, &localRays);
+            for (int k = 0; k < count; ++k) {
+                if (!clear[k]) continue;
+                ++lit;
+                if (std::optional<Witness> wit =
+                        tracer.tryRay(L, object, uint32_t(task.group), points[b + size_t(k)], task.receiver, &localRays)) {
+                    decide(d, Verdict::Kept, "raycast", why, std::move(wit));
+                    ++kept;
+                    return true;
+                }
+            }
+        }
+        return false;
+    }
+
+    // One bit: the task's targets, then, for a point or spot light whose reach cuts the
+    // group, points on the part within reach (its own points beyond reach cannot be p).
+    // Without a witness, a note says what was tried.
+    void searchBit(const WitnessSearch& task, uint32_t object, const Light& L, bool ownSamples, Decision& d,
+                   const char* why, uint64_t& localRays) const {
+        const std::vector<glm::dvec3>& targets = task.targets;
+        size_t lit = 0;
+        if (searchThrough(task, object, L, targets, d, why, lit, localRays)) return;
+        std::vector<glm::dvec3> within;
+        size_t litWithin = 0;
+        if (ownSamples && L.type != LightType::Directional &&
+            std::any_of(targets.begin(), targets.end(), [&](const glm::dvec3& t) { return !tracer.withinReach(L, t); })) {
+            within = sampleGroupWithinReach(window.objects[object], uint32_t(task.group), L, opt.areaSamples,
+                                            opt.maxFeatureSamples);
+            if (searchThrough(task, object, L, within, d, why, litWithin, localRays)) return;
+        }
+        if (task.throughReceivers)
+            addNote(d, "raycast",
+                    "no witness through the receivers in its shadow either: of " + std::to_string(targets.size()) +
+                        " points on them, " + std::to_string(lit) +
+                        " have a clear segment from the light to the group's bounds, and no ray through them "
+                        "has its first opaque hit on the group and a receiver more than the bias behind");
+        else if (!ownSamples)
+            addNote(d, "raycast",
+                    "no witness either through " + std::to_string(targets.size()) +
+                        " points where another stage saw a shadow may fall (" + std::to_string(lit) +
+                        " with a clear segment from the light to the group's bounds)");
+        else
+            addNote(d, "raycast",
+                    "no witness: of " + std::to_string(targets.size()) + " points on the group, " + std::to_string(lit) +
+                        " are lit (the light's segment to them is clear), and no ray through them meets a "
+                        "receiver more than the bias behind" +
+                        (within.empty() ? std::string()
+                                        : "; nor through " + std::to_string(within.size()) +
+                                              " points on its triangles within the light's reach (" +
+                                              std::to_string(litWithin) + " lit)"));
+    }
+};
+
 }  // namespace
 
 Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
@@ -452,133 +604,14 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
     try {
         WindowScene scene = im.scenes->buildWindow(window);
         if (Status s = im.takeError(); !s) return s;
-        // Margin: well above float rounding of window-local coordinates (~6e-8 relative).
-        const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
-        const double diag = glm::length(window.lsBounds.max - window.lsBounds.min);
-        // Depths recomputed in double: 1e-9 of the same scale, far above double rounding
-        // (depthOf keeps the float value where the line is nearly edge-on).
-        const double scale = std::max({ext.x, ext.y, ext.z}) + diag;
-        Tracer tracer{window, scene.all(), scene.opaque(), im.opt, 1e-6 * scale + 1e-6, 1e-9 * scale + 1e-12, diag + 1.0};
-        for (const Light& L : window.lsLights)
-            if (L.type != LightType::Directional) {
-                tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
-                tracer.exactEps = std::max(tracer.exactEps, 1e-9 * (glm::length(L.position) + L.range) + 1e-12);
-            }
-
+        const Tracer tracer = makeTracer(window, scene, im.opt);
         std::atomic<uint64_t> rays{0}, kept{0}, examined{0};
-        // One pass: every search's targets, each light it asks for that is still undecided.
-        // `countExamined`: the bits count once per stage run (the receiver-side pass
-        // examines bits the first one already counted).
-        auto trace = [&](std::vector<WitnessSearch>& tasks, const char* why, bool countExamined) {
-            tbb::parallel_for(size_t(0), tasks.size(), [&](size_t ti) {
-                // A signal: the searches not begun stay undecided; the stage then stops.
-                if (stopRequested()) return;
-                // Denormals in traversal cost ~100x per operation; the geometry never needs them.
-                const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);
-                WitnessSearch& task = tasks[ti];
-                const ObjectVerdicts& ov = cv.objects[task.object];
-                const uint32_t object = uint32_t(ov.windowObject);
-                const bool ownSamples = task.targets.empty() && !task.throughReceivers;
-                if (task.targets.empty()) {
-                    if (task.throughReceivers && task.light >= 0)
-                        task.targets = receiverTargets(window, object, uint32_t(task.group), window.lsLights[size_t(task.light)],
-                                                       im.opt.receiverSamples, *im.samples);
-                    else if (!task.throughReceivers)
-                        task.targets = im.samples->placed(window.objects[object], uint32_t(task.group));
-                }
-                uint64_t localRays = 0;
-                for (int l = 0; l < cv.lightCount; ++l) {
-                    if (task.light >= 0 && l != task.light) continue;
-                    Decision& d = cv.at(task.object, task.group, l);
-                    if (d.verdict != Verdict::Undecided) continue;
-                    if (countExamined) ++examined;
-                    const Light& L = window.lsLights[size_t(l)];
-                    // Targets in packets of 16: an occlusion packet drops those whose line is
-                    // blocked before the group (most of them where a bit ends undecided), then
-                    // closest hits examine the rest in order until one is a witness.
-                    // True when a ray through one of `points` is a witness (the bit is then
-                    // decided); `lit` counts those with a clear segment.
-                    auto searchThrough = [&](const std::vector<glm::dvec3>& points, size_t& lit) {
-                        for (size_t b = 0; b < points.size(); b += 16) {
-                            const int count = int(std::min<size_t>(16, points.size() - b));
-                            bool clear[16];
-                            tracer.clearSegments(L, object, &points[b], count, clear, &localRays);
-                            for (int k = 0; k < count; ++k) {
-                                if (!clear[k]) continue;
-                                ++lit;
-                                if (std::optional<Witness> wit =
-                                        tracer.tryRay(L, object, uint32_t(task.group), points[b + size_t(k)], task.receiver,
-                                                      &localRays)) {
-                                    decide(d, Verdict::Kept, "raycast", why, std::move(wit));
-                                    ++kept;
-                                    return true;
-                                }
-                            }
-                        }
-                        return false;
-                    };
-                    const std::vector<glm::dvec3>& targets = task.targets;
-                    size_t lit = 0;
-                    if (searchThrough(targets, lit)) continue;
-                    // A point or spot light whose reach cuts the group: its own points beyond
-                    // reach cannot be p. Points on the part within reach instead.
-                    std::vector<glm::dvec3> within;
-                    size_t litWithin = 0;
-                    if (ownSamples && L.type != LightType::Directional &&
-                        std::any_of(targets.begin(), targets.end(), [&](const glm::dvec3& t) { return !tracer.withinReach(L, t); })) {
-                        within = sampleGroupWithinReach(window.objects[object], uint32_t(task.group), L, im.opt.areaSamples,
-                                                        im.opt.maxFeatureSamples);
-                        if (searchThrough(within, litWithin)) continue;
-                    }
-                    if (task.throughReceivers)
-                        addNote(d, "raycast",
-                                "no witness through the receivers in its shadow either: of " + std::to_string(targets.size()) +
-                                    " points on them, " + std::to_string(lit) +
-                                    " have a clear segment from the light to the group's bounds, and no ray through them "
-                                    "has its first opaque hit on the group and a receiver more than the bias behind");
-                    else if (!ownSamples)
-                        addNote(d, "raycast",
-                                "no witness either through " + std::to_string(targets.size()) +
-                                    " points where another stage saw a shadow may fall (" + std::to_string(lit) +
-                                    " with a clear segment from the light to the group's bounds)");
-                    else
-                        addNote(d, "raycast",
-                                "no witness: of " + std::to_string(targets.size()) + " points on the group, " + std::to_string(lit) +
-                                    " are lit (the light's segment to them is clear), and no ray through them meets a "
-                                    "receiver more than the bias behind" +
-                                    (within.empty() ? std::string()
-                                                    : "; nor through " + std::to_string(within.size()) +
-                                                          " points on its triangles within the light's reach (" +
-                                                          std::to_string(litWithin) + " lit)"));
-                }
-                rays += localRays;
-            });
-        };
-        trace(searches, reason, true);
+        const SearchPass pass{tracer, window, cv, im.opt, *im.samples, rays, kept, examined};
+        pass.run(searches, reason, true);
         if (Status s = stopStatus(); !s) return s;
         if (receiverSide && im.opt.receiverSamples > 0) {
-            // The receiver-side pass (receiver_targets.h): the bits of large casters the
-            // group's own samples left undecided, one search per (group, light).
-            std::vector<WitnessSearch> more;
-            for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
-                if (cv.objects[oi].windowObject < 0) continue;
-                const WindowObject& o = window.objects[size_t(cv.objects[oi].windowObject)];
-                for (int g = 0; g < cv.objects[oi].groupCount; ++g) {
-                    bool large = false, checked = false;
-                    for (int l = 0; l < cv.lightCount; ++l) {
-                        if (cv.at(oi, g, l).verdict != Verdict::Undecided) continue;
-                        if (!checked) {
-                            large = isLargeCaster(o, uint32_t(g), im.opt.areaSamples, im.opt.largeCasterSpacing);
-                            checked = true;
-                        }
-                        if (!large) break;
-                        WitnessSearch ws{oi, g, l, {}};
-                        ws.throughReceivers = true;
-                        more.push_back(std::move(ws));
-                    }
-                }
-            }
-            trace(more, "witness ray through a receiver in the group's shadow (receiver-side search)", false);
+            std::vector<WitnessSearch> more = receiverSideSearches(window, cv, im.opt);
+            pass.run(more, "witness ray through a receiver in the group's shadow (receiver-side search)", false);
             if (Status s = stopStatus(); !s) return s;
         }
         scene.reset();

@@ -1,4 +1,4 @@
-// Receiver-side targets for witness rays (issue 19): points on the receivers that can lie
+// Receiver-side targets for witness rays: points on the receivers that can lie
 // in a large caster's shadow, aimed at from the light. A caster's own samples (rays from
 // the light through points on it, group_samples.h) are spread over the whole caster; a
 // 4,096 m² terrain chunk's few real witnesses (a ridge shading a valley, a rock behind a
