@@ -70,6 +70,7 @@ public:
 
 private:
     struct Gl;
+    Status ensureGl(int resolution);  // the context, program and target, made on the first call
     GpuBaselineOptions options_;
     std::unique_ptr<Gl> gl_;
     std::vector<BaselineCount> counts_;

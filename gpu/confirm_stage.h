@@ -144,6 +144,7 @@ public:
 private:
     struct Gl;
     struct LightWork;
+    struct LightRun;  // one light's steps (gpu/confirm_light.h)
     Status ensureGl();
     Status runLight(const BakeWindow& w, ChunkVerdicts& cv, int light, LightWork& work, StageStats& stats);
     GpuConfirmOptions options_;

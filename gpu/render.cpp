@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
@@ -120,6 +122,197 @@ std::vector<std::string> titleLines(const BakeWindow& w, const Light& L, int lig
     return t;
 }
 
+// The colour of each (window object, group) for one light: its verdict's for the centre
+// chunk's groups, the neighbours' colour for the rest.
+class GroupColours {
+public:
+    GroupColours(const BakeWindow& w, const ChunkVerdicts& cv, int light)
+        : w_(w), cv_(cv), light_(light), verdictObject_(w.objects.size(), -1) {
+        for (size_t oi = 0; oi < cv.objects.size(); ++oi)
+            if (cv.objects[oi].windowObject >= 0) verdictObject_[size_t(cv.objects[oi].windowObject)] = int(oi);
+    }
+    Verdict verdictOf(size_t oi, int group) const {
+        if (group >= cv_.objects[oi].groupCount || light_ >= cv_.lightCount) return Verdict::Undecided;
+        return cv_.at(oi, group, light_).verdict;
+    }
+    Rgb colourOf(const GroupRange& r) const {
+        const int oi = verdictObject_[r.object];
+        if (!w_.objects[r.object].centre || oi < 0) return kNeighbourColour;
+        switch (verdictOf(size_t(oi), int(r.group))) {
+            case Verdict::Culled: return kCulledColour;
+            case Verdict::Kept: return kKeptColour;
+            case Verdict::Undecided: break;
+        }
+        return kUndecidedColour;
+    }
+
+private:
+    const BakeWindow& w_;
+    const ChunkVerdicts& cv_;
+    const int light_;
+    std::vector<int> verdictObject_;  // per window object: index into ChunkVerdicts::objects, or -1
+};
+
+// The legend's counts: the centre chunk's groups by verdict, and those a framed view crops.
+void countGroups(const BakeWindow& w, const ChunkVerdicts& cv, const WindowTriangles& tris, const GroupColours& colours,
+                 const LightView* framed, RenderReport& report) {
+    for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
+        const ObjectVerdicts& ov = cv.objects[oi];
+        if (ov.windowObject < 0) continue;
+        const std::vector<Aabb> boxes = groupBounds(w, tris, size_t(ov.windowObject));
+        for (int g = 0; g < ov.groupCount; ++g) {
+            const Verdict v = colours.verdictOf(oi, g);
+            ++(v == Verdict::Culled ? report.culled : v == Verdict::Kept ? report.kept : report.undecided);
+            if (framed && size_t(g) < boxes.size() && !overlapsFrame(*framed, boxes[size_t(g)])) ++report.outsideFrame;
+        }
+    }
+}
+
+// Draws the window into the views' tiles of one render target and reads the tiles back.
+class ViewPainter {
+public:
+    ViewPainter(const GlApi& gl, GLuint program, const RenderTarget& target, const WindowBuffers& buffers,
+                RenderedViews& rv, int width, int height)
+        : gl_(gl), prog_(program), target_(target), buffers_(buffers), rv_(rv), width_(width), height_(height),
+          rgba_(size_t(width) * size_t(height) * 4) {}
+
+    // The state and the light's uniforms every drawing shares.
+    void setUp(const Light& L) {
+        gl_.BindFramebuffer(GL_FRAMEBUFFER, target_.fbo);
+        gl_.Viewport(0, 0, width_, height_);
+        gl_.ClearDepth(1.0);
+        gl_.DepthFunc(GL_LESS);
+        gl_.Disable(GL_CULL_FACE);
+        gl_.UseProgram(prog_);
+        gl_.Uniform1i(gl_.uniform(prog_, "uPoint"), L.type != LightType::Directional);
+        gl_.Uniform3f(gl_.uniform(prog_, "uLightPos"), float(L.position.x), float(L.position.y), float(L.position.z));
+        gl_.Uniform3f(gl_.uniform(prog_, "uLightDir"), float(L.direction.x), float(L.direction.y), float(L.direction.z));
+        uClip_ = gl_.uniform(prog_, "uClip"), uColour_ = gl_.uniform(prog_, "uColour"), uFlat_ = gl_.uniform(prog_, "uFlat");
+        buffers_.bind(gl_);
+        nearZ_ = std::max(1e-3, 1e-4 * L.range), farZ_ = L.range * 1.001 + nearZ_;
+    }
+
+    // Every group in its colour, shaded, nearest surface in front: the views image.
+    void paintVerdicts(const GroupColours& colours) {
+        gl_.ClearColor(0, 0, 0, 1);
+        gl_.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+        gl_.Enable(GL_DEPTH_TEST);
+        gl_.Uniform1i(uFlat_, 0);
+        drawViews([](const GroupRange&) { return true; }, [&](const GroupRange& r) { return colours.colourOf(r); });
+        readBack();
+        rv_.image = RgbImage(width_, height_);
+        for (int y = 0; y < height_; ++y)
+            for (int x = 0; x < width_; ++x) {
+                const unsigned char* p = &rgba_[(size_t(height_ - 1 - y) * size_t(width_) + size_t(x)) * 4];
+                rv_.image.set(x, y, {p[0], p[1], p[2]});
+            }
+    }
+
+    // The outlines' masks are drawn through everything, flat.
+    void beginOutlines() {
+        gl_.Disable(GL_DEPTH_TEST);
+        gl_.Uniform1i(uFlat_, 1);
+    }
+
+    // One group's mask, drawn through everything (a group hidden inside a house is still
+    // shown where it is), outlined. False when the group is nowhere in the views.
+    bool outline(const BakeWindow& w, const WindowTriangles& tris, uint32_t object, int group) {
+        gl_.Clear(GL_COLOR_BUFFER_BIT);
+        drawViews([&](const GroupRange& r) { return r.object == object && int(r.group) == group; },
+                  [](const GroupRange&) { return Rgb{255, 255, 255}; });
+        readBack();
+        bool any = false;
+        for (int y = 0; y < height_; ++y)
+            for (int x = 0; x < width_; ++x) {
+                const bool covered = rgba_[(size_t(height_ - 1 - y) * size_t(width_) + size_t(x)) * 4] > 127;
+                mask_[size_t(y) * size_t(width_) + size_t(x)] = covered;
+                any |= covered;
+            }
+        if (any) addOutline(rv_, mask_);
+        if (!any) any = ringCentre(w, tris, object, group);
+        return any;
+    }
+
+private:
+    // Thinner than a pixel (a 5 mm rod in a 100 m view): ring where its box's centre falls.
+    bool ringCentre(const BakeWindow& w, const WindowTriangles& tris, uint32_t object, int group) {
+        bool any = false;
+        const int resolution = rv_.tile;
+        const std::vector<Aabb> boxes = groupBounds(w, tris, object);
+        if (size_t(group) < boxes.size() && !boxes[size_t(group)].empty()) {
+            const glm::dvec3 c = (boxes[size_t(group)].min + boxes[size_t(group)].max) * 0.5;
+            for (size_t v = 0; v < rv_.views.size(); ++v) {
+                const glm::dvec3 q = rv_.views[v].toView(c);
+                if (rv_.views[v].perspective && !(q.z > 0)) continue;
+                const glm::dvec2 px = rv_.views[v].viewToPixel(q);
+                if (!(px.x >= 0 && px.y >= 0 && px.x < resolution && px.y < resolution)) continue;
+                const int col = int(v) % rv_.cols, row = int(v) / rv_.cols;
+                rv_.points.push_back({col * resolution + int(px.x), row * resolution + resolution - 1 - int(px.y)});
+                any = true;
+            }
+        }
+        return any;
+    }
+
+    // Draws the ranges `want` accepts into every tile (+x -x +y on the top row, -y +z -z below).
+    template <class Want, class Colour>
+    void drawViews(Want want, Colour colour) {
+        const int resolution = rv_.tile;
+        for (size_t v = 0; v < rv_.views.size(); ++v) {
+            const int col = int(v) % rv_.cols, row = rv_.rows - 1 - int(v) / rv_.cols;
+            gl_.Viewport(col * resolution, row * resolution, resolution, resolution);
+            const std::array<float, 16> clip =
+                rv_.views[v].clipMatrix(nearZ_, farZ_, 1e-3 * (rv_.views[v].w1 - rv_.views[v].w0) + 1e-3);
+            gl_.UniformMatrix4fv(uClip_, 1, GL_FALSE, clip.data());
+            for (const GroupRange& r : buffers_.ranges()) {
+                if (!want(r)) continue;
+                const glm::vec3 c = toGl(colour(r));
+                gl_.Uniform3f(uColour_, c.x, c.y, c.z);
+                gl_.DrawArrays(GL_TRIANGLES, r.first, r.count);
+            }
+        }
+    }
+
+    void readBack() {
+        gl_.BindFramebuffer(GL_READ_FRAMEBUFFER, target_.fbo);
+        gl_.ReadBuffer(GL_COLOR_ATTACHMENT0);
+        gl_.PixelStorei(GL_PACK_ALIGNMENT, 1);
+        gl_.ReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, rgba_.data());
+    }
+
+    const GlApi& gl_;
+    const GLuint prog_;
+    const RenderTarget& target_;
+    const WindowBuffers& buffers_;
+    RenderedViews& rv_;
+    const int width_, height_;
+    std::vector<unsigned char> rgba_;  // the last read back, bottom row first
+    std::vector<uint8_t> mask_ = std::vector<uint8_t>(size_t(width_) * size_t(height_));
+    GLint uClip_ = -1, uColour_ = -1, uFlat_ = -1;
+    double nearZ_ = 0, farZ_ = 0;  // metres, the clip matrices' depth range
+};
+
+std::vector<LegendEntry> legendLines(const BakeWindow& w, const RenderRequest& rq, const RenderReport& report) {
+    const std::string chunk = chunkFileName(w.centre);
+    std::vector<LegendEntry> legend = {
+        {"culled (proved 0): " + groups(report.culled), true, kCulledColour},
+        {"kept (proved 1, a witness): " + groups(report.kept), true, kKeptColour},
+        {"undecided (written 1, no proof): " + groups(report.undecided), true, kUndecidedColour},
+        {"neighbour chunks (occluders and receivers, not baked)", true, kNeighbourColour},
+        {"nothing loaded there", true, Rgb{0, 0, 0}}};
+    if (!rq.outlined.empty())
+        legend.push_back({"outlined: " + groups(rq.outlined.size()) + " " + rq.outlineMeaning +
+                              (report.outlined < rq.outlined.size()
+                                   ? " (" + std::to_string(rq.outlined.size() - report.outlined) + " not in view)"
+                                   : ""),
+                          true, kOutlineColour});
+    if (report.outsideFrame)
+        legend.push_back({groups(report.outsideFrame) + " of " + chunk +
+                              " outside the frame (far above the ground): counted above, not shown",
+                          false, {}});
+    return legend;
+}
+
 }  // namespace
 
 Expected<RenderReport> renderLightView(const BakeWindow& w, const ChunkVerdicts& cv, const RenderRequest& rq,
@@ -153,123 +346,19 @@ Expected<RenderReport> renderLightView(const BakeWindow& w, const ChunkVerdicts&
 
     RenderReport report;
     report.gl = (*session)->context->report();
-    // Colour of each (window object, group), and the legend's counts.
-    std::vector<int> verdictObject(w.objects.size(), -1);
-    for (size_t oi = 0; oi < cv.objects.size(); ++oi)
-        if (cv.objects[oi].windowObject >= 0) verdictObject[size_t(cv.objects[oi].windowObject)] = int(oi);
-    auto verdictOf = [&](size_t oi, int group) {
-        if (group >= cv.objects[oi].groupCount || light >= cv.lightCount) return Verdict::Undecided;
-        return cv.at(oi, group, light).verdict;
-    };
-    auto colourOf = [&](const GroupRange& r) -> Rgb {
-        const int oi = verdictObject[r.object];
-        if (!w.objects[r.object].centre || oi < 0) return kNeighbourColour;
-        switch (verdictOf(size_t(oi), int(r.group))) {
-            case Verdict::Culled: return kCulledColour;
-            case Verdict::Kept: return kKeptColour;
-            case Verdict::Undecided: break;
-        }
-        return kUndecidedColour;
-    };
-    for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
-        const ObjectVerdicts& ov = cv.objects[oi];
-        if (ov.windowObject < 0) continue;
-        const std::vector<Aabb> boxes = groupBounds(w, tris, size_t(ov.windowObject));
-        for (int g = 0; g < ov.groupCount; ++g) {
-            const Verdict v = verdictOf(oi, g);
-            ++(v == Verdict::Culled ? report.culled : v == Verdict::Kept ? report.kept : report.undecided);
-            if (framed && size_t(g) < boxes.size() && !overlapsFrame(rv.views[0], boxes[size_t(g)])) ++report.outsideFrame;
-        }
-    }
+    const GroupColours colours(w, cv, light);
+    countGroups(w, cv, tris, colours, framed ? &rv.views[0] : nullptr, report);
 
-    gl.BindFramebuffer(GL_FRAMEBUFFER, target->fbo);
-    gl.Viewport(0, 0, width, height);
-    gl.ClearDepth(1.0);
-    gl.DepthFunc(GL_LESS);
-    gl.Disable(GL_CULL_FACE);
-    gl.UseProgram(*prog);
-    gl.Uniform1i(gl.uniform(*prog, "uPoint"), L.type != LightType::Directional);
-    gl.Uniform3f(gl.uniform(*prog, "uLightPos"), float(L.position.x), float(L.position.y), float(L.position.z));
-    gl.Uniform3f(gl.uniform(*prog, "uLightDir"), float(L.direction.x), float(L.direction.y), float(L.direction.z));
-    const GLint uClip = gl.uniform(*prog, "uClip"), uColour = gl.uniform(*prog, "uColour"), uFlat = gl.uniform(*prog, "uFlat");
-    buffers.bind(gl);
-    const double nearZ = std::max(1e-3, 1e-4 * L.range), farZ = L.range * 1.001 + nearZ;
-    // Draws the ranges `want` accepts into every tile (+x -x +y on the top row, -y +z -z below).
-    auto drawViews = [&](auto want, auto colour) {
-        for (size_t v = 0; v < rv.views.size(); ++v) {
-            const int col = int(v) % rv.cols, row = rv.rows - 1 - int(v) / rv.cols;
-            gl.Viewport(col * resolution, row * resolution, resolution, resolution);
-            const std::array<float, 16> clip =
-                rv.views[v].clipMatrix(nearZ, farZ, 1e-3 * (rv.views[v].w1 - rv.views[v].w0) + 1e-3);
-            gl.UniformMatrix4fv(uClip, 1, GL_FALSE, clip.data());
-            for (const GroupRange& r : buffers.ranges()) {
-                if (!want(r)) continue;
-                const glm::vec3 c = toGl(colour(r));
-                gl.Uniform3f(uColour, c.x, c.y, c.z);
-                gl.DrawArrays(GL_TRIANGLES, r.first, r.count);
-            }
-        }
-    };
-    std::vector<unsigned char> rgba(size_t(width) * size_t(height) * 4);
-    auto readBack = [&]() {
-        gl.BindFramebuffer(GL_READ_FRAMEBUFFER, target->fbo);
-        gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
-        gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
-        gl.ReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
-    };
-    gl.ClearColor(0, 0, 0, 1);
-    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    gl.Enable(GL_DEPTH_TEST);
-    gl.Uniform1i(uFlat, 0);
-    drawViews([](const GroupRange&) { return true; }, colourOf);
-    readBack();
-    rv.image = RgbImage(width, height);
-    for (int y = 0; y < height; ++y)
-        for (int x = 0; x < width; ++x) {
-            const unsigned char* p = &rgba[(size_t(height - 1 - y) * size_t(width) + size_t(x)) * 4];
-            rv.image.set(x, y, {p[0], p[1], p[2]});
-        }
-    // One mask per outlined group, drawn through everything (a group hidden inside a house
-    // is still shown where it is), outlined and let go. Bounded: a picture with more
-    // outlines reads no better.
-    std::vector<uint8_t> mask(size_t(width) * size_t(height));
-    gl.Disable(GL_DEPTH_TEST);
-    gl.Uniform1i(uFlat, 1);
+    ViewPainter painter(gl, *prog, *target, buffers, rv, width, height);
+    painter.setUp(L);
+    painter.paintVerdicts(colours);
+    painter.beginOutlines();
+    // One outline per group asked for. Bounded: a picture with more outlines reads no better.
     for (size_t k = 0; k < rq.outlined.size() && k < 64; ++k) {
-        // Plain copies: a lambda may not capture a structured binding in C++17 (clang refuses).
         const size_t oi = size_t(rq.outlined[k].first);
         const int group = int(rq.outlined[k].second);
         if (oi >= cv.objects.size() || cv.objects[oi].windowObject < 0) continue;
-        const uint32_t object = uint32_t(cv.objects[oi].windowObject);
-        gl.Clear(GL_COLOR_BUFFER_BIT);
-        drawViews([&](const GroupRange& r) { return r.object == object && int(r.group) == group; },
-                  [](const GroupRange&) { return Rgb{255, 255, 255}; });
-        readBack();
-        bool any = false;
-        for (int y = 0; y < height; ++y)
-            for (int x = 0; x < width; ++x) {
-                const bool covered = rgba[(size_t(height - 1 - y) * size_t(width) + size_t(x)) * 4] > 127;
-                mask[size_t(y) * size_t(width) + size_t(x)] = covered;
-                any |= covered;
-            }
-        if (any) addOutline(rv, mask);
-        if (!any) {
-            // Thinner than a pixel (a 5 mm rod in a 100 m view): ring where its box's centre falls.
-            const std::vector<Aabb> boxes = groupBounds(w, tris, object);
-            if (size_t(group) < boxes.size() && !boxes[size_t(group)].empty()) {
-                const glm::dvec3 c = (boxes[size_t(group)].min + boxes[size_t(group)].max) * 0.5;
-                for (size_t v = 0; v < rv.views.size(); ++v) {
-                    const glm::dvec3 q = rv.views[v].toView(c);
-                    if (rv.views[v].perspective && !(q.z > 0)) continue;
-                    const glm::dvec2 px = rv.views[v].viewToPixel(q);
-                    if (!(px.x >= 0 && px.y >= 0 && px.x < resolution && px.y < resolution)) continue;
-                    const int col = int(v) % rv.cols, row = int(v) / rv.cols;
-                    rv.points.push_back({col * resolution + int(px.x), row * resolution + resolution - 1 - int(px.y)});
-                    any = true;
-                }
-            }
-        }
-        report.outlined += any;
+        report.outlined += painter.outline(w, tris, uint32_t(cv.objects[oi].windowObject), group);
     }
     gl.BindVertexArray(0);
     if (Status s = gl.check("rendering the light view"); !s) return s.error();
@@ -277,23 +366,7 @@ Expected<RenderReport> renderLightView(const BakeWindow& w, const ChunkVerdicts&
     destroyRenderTarget(gl, *target);
     gl.DeleteProgram(*prog);
 
-    const std::string chunk = chunkFileName(w.centre);
-    std::vector<LegendEntry> legend = {
-        {"culled (proved 0): " + groups(report.culled), true, kCulledColour},
-        {"kept (proved 1, a witness): " + groups(report.kept), true, kKeptColour},
-        {"undecided (written 1, no proof): " + groups(report.undecided), true, kUndecidedColour},
-        {"neighbour chunks (occluders and receivers, not baked)", true, kNeighbourColour},
-        {"nothing loaded there", true, Rgb{0, 0, 0}}};
-    if (!rq.outlined.empty())
-        legend.push_back({"outlined: " + groups(rq.outlined.size()) + " " + rq.outlineMeaning +
-                              (report.outlined < rq.outlined.size()
-                                   ? " (" + std::to_string(rq.outlined.size() - report.outlined) + " not in view)"
-                                   : ""),
-                          true, kOutlineColour});
-    if (report.outsideFrame)
-        legend.push_back({groups(report.outsideFrame) + " of " + chunk +
-                              " outside the frame (far above the ground): counted above, not shown",
-                          false, {}});
+    const std::vector<LegendEntry> legend = legendLines(w, rq, report);
     const RgbImage picture = composePicture(rv, titleLines(w, L, light, rq, framed ? &rv.views[0] : nullptr), legend, report);
     if (Status s = writePng(pngPath, picture); !s) return s.error();
     return report;
