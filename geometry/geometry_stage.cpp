@@ -456,7 +456,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
             if (objectBoxes[k].max.y < level) objectBoxes[k] = Aabb{};
             else objectBoxes[k].min.y = std::max(objectBoxes[k].min.y, level);
         }
-        const BoxTree objectTree(objectBoxes);
+        const ObjectTree objectTree(objectBoxes);
 
         // The lights as this stage tests them. A normal bias looks a receiver point q's shadow
         // up at q' = q + normalBias * n (semantics.md condition 5): q' within the frustum

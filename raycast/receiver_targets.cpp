@@ -168,12 +168,12 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
     } else {
         thread_local std::vector<glm::dvec3> placed;
         placed.resize(cm.positions.size());
-        for (uint32_t v : groupVertices.order()) {
+        for (uint32_t v : groupVertices.items()) {
             placed[v] = caster.lsTransform.apply(cm.positions[v]);
             nearest = std::min(nearest, frame.depth(placed[v]));
         }
         // footprintOf over the group's placed vertices (each once).
-        for (uint32_t v : groupVertices.order()) {
+        for (uint32_t v : groupVertices.items()) {
             const std::optional<glm::dvec2> q = frame.project(placed[v]);
             if (!q) {
                 fp.all = true;
@@ -304,7 +304,7 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
         const double bottom = *low - level;
         thread_local std::vector<uint32_t> crossing;
         crossing.clear();
-        vertexIndex(m).triangles.forEach(
+        vertexIndex(m).triangles.visit(
             [&](const glm::dvec3& lo, const glm::dvec3& hi) {
                 // The node's placed box (conservative: core/mesh_index.h).
                 glm::dvec3 pLo, pHi;
