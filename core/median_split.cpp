@@ -20,8 +20,8 @@ using Entry = SplitEntry;
 
 class Splitter {
 public:
-    Splitter(std::vector<Entry>& entries, std::vector<SplitNode>& nodes, uint32_t leafSize, uint32_t orderLeaf)
-        : entries_(entries), nodes_(nodes), leafSize_(leafSize), orderLeaf_(std::max(orderLeaf, 1u)) {}
+    Splitter(std::vector<Entry>& entries, std::vector<SplitNode>& nodes, uint32_t leafSize, uint32_t orderLeaf, SplitTies ties)
+        : entries_(entries), nodes_(nodes), leafSize_(leafSize), orderLeaf_(std::max(orderLeaf, 1u)), ties_(ties) {}
 
     // Nodes of a subtree over `count` items (1 for a leaf): what the slots are counted by.
     uint32_t subtreeNodes(uint32_t count) {
@@ -80,8 +80,13 @@ private:
         const glm::dvec3 side = hi - lo;
         const int axis = side.x >= side.y && side.x >= side.z ? 0 : side.y >= side.z ? 1 : 2;
         const uint32_t mid = begin + (end - begin) / 2;
-        std::nth_element(entries_.begin() + begin, entries_.begin() + mid, entries_.begin() + end,
-                         [axis](const Entry& a, const Entry& b) { return a.centre[axis] < b.centre[axis]; });
+        const auto first = entries_.begin() + begin, nth = entries_.begin() + mid, last = entries_.begin() + end;
+        if (ties_ == SplitTies::ByItem)
+            std::nth_element(first, nth, last, [axis](const Entry& a, const Entry& b) {
+                return a.centre[axis] < b.centre[axis] || (a.centre[axis] == b.centre[axis] && a.item < b.item);
+            });
+        else
+            std::nth_element(first, nth, last, [axis](const Entry& a, const Entry& b) { return a.centre[axis] < b.centre[axis]; });
         return mid;
     }
 
@@ -92,16 +97,17 @@ private:
     std::vector<SplitNode>& nodes_;
     const uint32_t leafSize_;
     const uint32_t orderLeaf_;  // leaves' items are ordered down to ranges of this many
+    const SplitTies ties_;
     std::unordered_map<uint32_t, uint32_t> memo_;
 };
 
 }  // namespace
 
-std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize, uint32_t orderLeaf) {
+std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize, uint32_t orderLeaf, SplitTies ties) {
     std::vector<SplitNode> nodes;
     if (entries.empty()) return nodes;
     leafSize = std::max(leafSize, 1u);
-    Splitter s(entries, nodes, leafSize, orderLeaf == 0 ? leafSize : std::min(orderLeaf, leafSize));
+    Splitter s(entries, nodes, leafSize, orderLeaf == 0 ? leafSize : std::min(orderLeaf, leafSize), ties);
     nodes.resize(s.subtreeNodes(uint32_t(entries.size())));
     if (entries.size() >= kParallelFrom) {
         tbb::task_group group;

@@ -1,4 +1,4 @@
-// Median splits: the one builder behind core's MeshTree and the geometry stage's BoxTree.
+// Median splits: the one builder behind every BoxTree (core/box_tree.h).
 //
 // A range of more than `leafSize` items is halved at its median (count / 2, the lower half
 // left) along the longest side of the box of its items' centres (ties: x, then y). Balanced,
@@ -26,12 +26,19 @@ struct SplitEntry {
     uint32_t item;
 };
 
+// Which side of a split items with equal centres (along its axis) go to.
+enum class SplitTies {
+    AsFound,  // as nth_element leaves them: depends on the items' order before the split
+    ByItem,   // the smaller item first: the halves depend only on the set of entries
+};
+
 // Permutes `entries` leaf by leaf and returns the nodes, as below (for callers that have
 // no array of centres by item: one array fewer, the size of a dense mesh's triangles).
 // With `orderLeaf` below `leafSize`, a leaf's items are further ordered as the splits down
 // to leaves of `orderLeaf` would order them, without nodes: the items' order (and so the
 // order of every walk over them) is that of the finer tree, with the nodes of the coarser.
-std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize, uint32_t orderLeaf = 0);
+std::vector<SplitNode> medianSplit(std::vector<SplitEntry>& entries, uint32_t leafSize, uint32_t orderLeaf = 0,
+                                   SplitTies ties = SplitTies::AsFound);
 
 // Permutes `order` (item indices; centres[item] is the item's centre) leaf by leaf and
 // returns the nodes: the root first, every child after its parent (a pass from the last

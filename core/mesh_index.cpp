@@ -18,20 +18,18 @@ namespace shadowcull {
 
 namespace {
 
-constexpr uint32_t kVertexLeaf = 16;
-
 // The nodes of a tree that mirrors `tree` (a triangle tree) over items placed in its order:
 // node k's items are [before[tree[k].begin], before[tree[k].end]). Nodes with no items are
 // left out, an inner node with one child that has items is replaced by it; the layout is
 // medianSplit's (root first, siblings side by side after their parent). At least one item.
-std::vector<SplitNode> mirroredNodes(const std::vector<MeshTree::Node>& tree, const std::vector<uint32_t>& before) {
+std::vector<SplitNode> mirroredNodes(const std::vector<BoxTree<>::Node>& tree, const std::vector<uint32_t>& before) {
     auto empty = [&](int32_t k) { return before[tree[size_t(k)].begin] == before[tree[size_t(k)].end]; };
     // The node that stands for k: down through inner nodes with an empty child.
     auto standIn = [&](int32_t k) {
         while (tree[size_t(k)].left >= 0) {
-            const MeshTree::Node& n = tree[size_t(k)];
-            if (empty(n.left)) k = n.right;
-            else if (empty(n.right)) k = n.left;
+            const BoxTree<>::Node& n = tree[size_t(k)];
+            if (empty(n.left)) k = n.right();
+            else if (empty(n.right())) k = n.left;
             else break;
         }
         return k;
@@ -41,14 +39,14 @@ std::vector<SplitNode> mirroredNodes(const std::vector<MeshTree::Node>& tree, co
     while (!stack.empty()) {
         const auto [slot, k] = stack.back();
         stack.pop_back();
-        const MeshTree::Node& n = tree[size_t(k)];
+        const BoxTree<>::Node& n = tree[size_t(k)];
         nodes[slot].begin = before[n.begin];
         nodes[slot].end = before[n.end];
         if (n.left < 0) continue;
         const uint32_t left = uint32_t(nodes.size());
         nodes[slot].left = int32_t(left);
         nodes.resize(nodes.size() + 2);
-        stack.push_back({left + 1, standIn(n.right)});
+        stack.push_back({left + 1, standIn(n.right())});
         stack.push_back({left, standIn(n.left)});
     }
     return nodes;
@@ -56,62 +54,49 @@ std::vector<SplitNode> mirroredNodes(const std::vector<MeshTree::Node>& tree, co
 
 }  // namespace
 
+namespace {
+
+// Median splits over `items` by the centres of their boxes, down to leaves of `leafSize`
+// ordered as leaves of `orderLeaf` would be (core/median_split.h); or, with `given` nodes,
+// the items' order kept and those nodes boxed. box(item, lo, hi) extends lo, hi by the item.
 template <class Box>
-void MeshTree::build(const Box& box, uint32_t leafSize, uint32_t orderLeaf, std::vector<SplitNode> given) {
-    if (order_.empty()) return;
-    std::vector<SplitNode> split = std::move(given);
-    if (split.empty()) {
-        // Each item's box centre, for the splits.
-        std::vector<SplitEntry> entries(order_.size());
-        for (size_t k = 0; k < order_.size(); ++k) {
+BoxTree<> boxTree(std::vector<uint32_t> items, const Box& box, uint32_t leafSize, uint32_t orderLeaf,
+                  const std::vector<SplitNode>& given) {
+    if (items.empty()) return {};
+    if (!given.empty()) return BoxTree<>(std::move(items), given, box);
+    std::vector<SplitNode> split;
+    {
+        std::vector<SplitEntry> entries(items.size());
+        for (size_t k = 0; k < items.size(); ++k) {
             glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-            box(order_[k], lo, hi);
-            entries[k] = {0.5 * (lo + hi), order_[k]};
+            box(items[k], lo, hi);
+            entries[k] = {0.5 * (lo + hi), items[k]};
         }
         split = medianSplit(entries, leafSize, orderLeaf);
-        for (size_t k = 0; k < order_.size(); ++k) order_[k] = entries[k].item;
+        for (size_t k = 0; k < items.size(); ++k) items[k] = entries[k].item;
     }  // the entries are freed before the nodes are made
-    // Boxes bottom up: a leaf's from its items, an inner node's from its children (min and
-    // max are exact, so each is the exact box of its items' vertices).
-    nodes_.resize(split.size());
-    for (size_t k = split.size(); k-- > 0;) {
-        const SplitNode& s = split[k];
-        Node& n = nodes_[k];
-        n.begin = s.begin;
-        n.end = s.end;
-        n.lo = glm::dvec3(std::numeric_limits<double>::infinity());
-        n.hi = glm::dvec3(-std::numeric_limits<double>::infinity());
-        if (s.left < 0) {
-            for (uint32_t i = s.begin; i < s.end; ++i) box(order_[i], n.lo, n.hi);
-        } else {
-            n.left = s.left;
-            n.right = s.left + 1;
-            const Node &a = nodes_[size_t(n.left)], &b = nodes_[size_t(n.right)];
-            n.lo = glm::min(a.lo, b.lo);
-            n.hi = glm::max(a.hi, b.hi);
-        }
-    }
+    return BoxTree<>(std::move(items), split, box);
 }
 
-MeshTree::MeshTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices, std::vector<SplitNode> nodes)
-    : order_(std::move(vertices)) {
-    build([&](uint32_t v, glm::dvec3& lo, glm::dvec3& hi) {
+}  // namespace
+
+VertexTree makeVertexTree(const std::vector<glm::dvec3>& positions, std::vector<uint32_t> vertices,
+                          const std::vector<SplitNode>& nodes) {
+    return boxTree(std::move(vertices), [&](uint32_t v, glm::dvec3& lo, glm::dvec3& hi) {
         lo = glm::min(lo, positions[v]);
         hi = glm::max(hi, positions[v]);
-    }, kVertexLeaf, 0, std::move(nodes));
+    }, kVertexLeaf, 0, nodes);
 }
 
-MeshTree MeshTree::overTriangles(const Mesh& mesh) {
-    MeshTree tree;
-    tree.order_.resize(mesh.triangles.size());
-    for (uint32_t t = 0; t < tree.order_.size(); ++t) tree.order_[t] = t;
-    tree.build([&](uint32_t t, glm::dvec3& lo, glm::dvec3& hi) {
+BoxTree<> makeTriangleTree(const Mesh& mesh) {
+    std::vector<uint32_t> triangles(mesh.triangles.size());
+    for (uint32_t t = 0; t < triangles.size(); ++t) triangles[t] = t;
+    return boxTree(std::move(triangles), [&](uint32_t t, glm::dvec3& lo, glm::dvec3& hi) {
         for (uint32_t v : mesh.triangles[t]) {
             lo = glm::min(lo, mesh.positions[v]);
             hi = glm::max(hi, mesh.positions[v]);
         }
-    }, kTriangleLeaf, kTriangleOrder);
-    return tree;
+    }, kTriangleLeaf, kTriangleOrder, {});
 }
 
 namespace {
@@ -139,7 +124,7 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
             if (subsets[k] == vertices) return trees[k];
         ++pass;
         for (uint32_t v : vertices) stamp[v] = pass;
-        const std::vector<uint32_t>& triangleOrder = index->triangles.order();
+        const std::vector<uint32_t>& triangleOrder = index->triangles.items();
         std::vector<uint32_t> ordered;
         ordered.reserve(vertices.size());
         before.resize(triangleOrder.size() + 1);
@@ -153,7 +138,7 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
         if (ordered.size() < vertices.size()) ordered = vertices;
         else if (!ordered.empty()) nodes = mirroredNodes(index->triangles.nodes(), before);
         subsets.push_back(std::move(vertices));
-        index->trees.emplace_back(m.positions, std::move(ordered), std::move(nodes));
+        index->trees.push_back(makeVertexTree(m.positions, std::move(ordered), nodes));
         trees.push_back(&index->trees.back());
         return trees.back();
     };
@@ -190,7 +175,7 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
         withArea[g].push_back(t);
         ++index->groupTrianglesWithArea[g];
     }
-    index->triangles = MeshTree::overTriangles(m);
+    index->triangles = makeTriangleTree(m);
     index->used = treeOf(verticesOf(all));
     std::vector<uint32_t> every(nv);
     for (uint32_t v = 0; v < nv; ++v) every[v] = v;

@@ -140,7 +140,7 @@ struct WindowScene {
     double margin;  // metres: far above the rounding of any placed vertex of the window
     Aabb limits;    // the loaded window, grown
     std::vector<Aabb> objectBoxes;
-    BoxTree objectTree;
+    ObjectTree objectTree;
     std::vector<Light> lights;  // dilated by the normal bias (testedLights)
     std::vector<LightGeometry> lightGeom;
     std::vector<std::unique_ptr<ReceiverRules>> rules;  // for the lights some task needs

@@ -13,7 +13,7 @@
 #include <glm/vec3.hpp>
 
 #include "core/stage.h"
-#include "geometry/box_tree.h"
+#include "geometry/broad_phase.h"
 
 namespace shadowcull::geometry {
 

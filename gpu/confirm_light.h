@@ -19,18 +19,18 @@
 #include "gpu/conservative.h"
 #include "gpu/gl_api.h"
 #include "gpu/light_view.h"
-#include "gpu/mesh_tree.h"
+#include "gpu/selection_tree.h"
 #include "gpu/pixel_cells.h"
 
 namespace shadowcull::gpu {
 
 // Per run: the stage's trees and edges per mesh.
 struct GpuConfirmStage::LightWork {
-    std::unordered_map<const Mesh*, std::unique_ptr<MeshTree>>& trees;
+    std::unordered_map<const Mesh*, std::unique_ptr<SelectionTree>>& trees;
     std::unordered_map<const Mesh*, std::unique_ptr<MeshEdges>>& edges;
-    const MeshTree& treeOf(const Mesh* mesh) {
+    const SelectionTree& treeOf(const Mesh* mesh) {
         auto& t = trees[mesh];
-        if (!t) t = std::make_unique<MeshTree>(*mesh);
+        if (!t) t = std::make_unique<SelectionTree>(*mesh);
         return *t;
     }
     const MeshEdges& edgesOf(const Mesh* mesh) {

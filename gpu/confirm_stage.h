@@ -37,7 +37,7 @@
 //
 // Cost: per light and view, the casters' pixels set a region (a bounding rectangle and
 // 8 x 8 pixel cells) outside which nothing is drawn; only the triangles over those cells are
-// classified and cut into pieces, found through a box tree per unique mesh (mesh_tree.h,
+// classified and cut into pieces, found through a box tree per unique mesh (selection_tree.h,
 // confirm_surfaces.h), so a dense neighbour costs what lies over the examined pixels, not
 // its triangle count; receivers that lie nowhere behind a caster and occluder sheets that
 // lie nowhere in front of one are left out, and so are sheets whose pixel box holds no
@@ -55,8 +55,8 @@
 
 namespace shadowcull::gpu {
 
-struct MeshEdges;  // gpu/conservative.h
-class MeshTree;    // gpu/mesh_tree.h
+struct MeshEdges;     // gpu/conservative.h
+class SelectionTree;  // gpu/selection_tree.h
 
 struct GpuConfirmOptions {
     int resolution = 1024;         // pixels per side of each light view
@@ -159,8 +159,8 @@ private:
     std::unordered_map<const Mesh*, std::unique_ptr<MeshEdges>> edges_;
     // Per mesh of the last window, its triangles' box tree in mesh coordinates (every
     // instance's), kept likewise: the triangles that can reach the examined pixels are
-    // found through it (gpu/mesh_tree.h).
-    std::unordered_map<const Mesh*, std::unique_ptr<MeshTree>> trees_;
+    // found through it (gpu/selection_tree.h).
+    std::unordered_map<const Mesh*, std::unique_ptr<SelectionTree>> trees_;
 };
 
 }  // namespace shadowcull::gpu

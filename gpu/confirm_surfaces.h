@@ -1,6 +1,6 @@
 // The GPU confirmation's surfaces for one light: an object's occluder sheets and receiver
 // triangles (confirm_stage.cpp, points 3 and 4), found from the triangles that can reach
-// the examined pixels alone (MeshTree selects them) instead of from every triangle of the
+// the examined pixels alone (SelectionTree selects them) instead of from every triangle of the
 // object.
 //
 // A sheet is a connected component of the WHOLE mesh's triangles of one class (one facing

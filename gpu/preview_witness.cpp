@@ -43,7 +43,7 @@ std::vector<ExactLightRays::Hit> ExactLightRays::hitsAlong(const glm::dvec3& ori
     for (uint32_t k = 0; k < w_.objects.size(); ++k) {
         const WindowObject& o = w_.objects[k];
         if (o.lsBounds.empty() || !segmentMeetsBox(origin, dir, tEnd, o.lsBounds)) continue;
-        vertexIndex(*o.mesh).triangles.forEach(
+        vertexIndex(*o.mesh).triangles.visit(
             [&](const glm::dvec3& lo, const glm::dvec3& hi) {
                 return segmentMeetsBox(origin, dir, tEnd, placedBounds(Aabb{lo, hi}, o.lsTransform));
             },

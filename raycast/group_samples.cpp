@@ -118,7 +118,7 @@ std::vector<glm::dvec3> sampleGroupWithinReach(const WindowObject& object, uint3
     if (light.type == LightType::Directional) return {};
     const Mesh& mesh = *object.mesh;
     std::vector<uint32_t> chosen;
-    vertexIndex(mesh).triangles.forEach(
+    vertexIndex(mesh).triangles.visit(
         // A node by its placed bounds (core/window.h: every placed corner, rounding
         // included), so that no triangle a vertex's own rounding puts within reach is cut.
         [&](const glm::dvec3& lo, const glm::dvec3& hi) { return !boxOutOfReach(light, placedBounds(Aabb{lo, hi}, object.lsTransform)); },

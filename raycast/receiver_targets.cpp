@@ -169,12 +169,12 @@ CasterExtent pointExtent(const WindowObject& caster, uint32_t group, const Verte
     CasterExtent e;
     thread_local std::vector<glm::dvec3> placed;
     placed.resize(cm.positions.size());
-    for (uint32_t v : groupVertices.order()) {
+    for (uint32_t v : groupVertices.items()) {
         placed[v] = caster.lsTransform.apply(cm.positions[v]);
         e.nearest = std::min(e.nearest, frame.depth(placed[v]));
     }
     // footprintOf over the group's placed vertices (each once).
-    for (uint32_t v : groupVertices.order()) {
+    for (uint32_t v : groupVertices.items()) {
         const std::optional<glm::dvec2> q = frame.project(placed[v]);
         if (!q) {
             e.fp.all = true;
@@ -279,7 +279,7 @@ bool grazesGround(const Aim& aim, const std::vector<std::array<glm::dvec3, 3>>& 
 void crossingTriangles(const Aim& aim, const WindowObject& o, double bottom, double highest, double level,
                        std::vector<uint32_t>& crossing) {
     crossing.clear();
-    vertexIndex(*o.mesh).triangles.forEach(
+    vertexIndex(*o.mesh).triangles.visit(
         [&](const glm::dvec3& lo, const glm::dvec3& hi) {
             // The node's placed box (conservative: core/mesh_index.h).
             glm::dvec3 pLo, pHi;

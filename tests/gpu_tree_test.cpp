@@ -1,4 +1,4 @@
-// gpu/mesh_tree.h: the box tree over a mesh's triangles that the GPU confirmation selects
+// gpu/selection_tree.h: the box tree over a mesh's triangles that the GPU confirmation selects
 // the triangles near the examined pixels with. Every triangle (with three distinct
 // vertices) lies under exactly one leaf; a walk that keeps the nodes whose box meets a query
 // box reaches every triangle whose own box meets it; and a node's placed box holds its
@@ -13,7 +13,7 @@
 
 #include "core/mesh.h"
 #include "core/scene.h"
-#include "gpu/mesh_tree.h"
+#include "gpu/selection_tree.h"
 #include "tests/support/space_builder.h"
 
 using namespace shadowcull;
@@ -45,10 +45,10 @@ bool meets(const Aabb& a, const Aabb& b) {
 
 }  // namespace
 
-TEST(GpuMeshTree, EveryTriangleUnderOneLeaf) {
+TEST(GpuSelectionTree, EveryTriangleUnderOneLeaf) {
     DeterministicRng rng(7);
     const Mesh m = jaggedSheet(40, rng);
-    const gpu::MeshTree tree(m);
+    const gpu::SelectionTree tree(m);
     std::vector<int> seen(m.triangles.size(), 0);
     tree.visit([](const Aabb&) { return true; }, [&](uint32_t t) { ++seen[t]; });
     size_t listed = 0;
@@ -60,13 +60,13 @@ TEST(GpuMeshTree, EveryTriangleUnderOneLeaf) {
     }
     EXPECT_EQ(tree.triangles().size(), listed);
     EXPECT_TRUE(std::is_sorted(tree.triangles().begin(), tree.triangles().end()));
-    EXPECT_GT(tree.nodeCount(), listed / gpu::MeshTree::kLeafSize);
+    EXPECT_GT(tree.nodeCount(), listed / gpu::SelectionTree::kLeafSize);
 }
 
-TEST(GpuMeshTree, BoxWalkReachesEveryTriangleThatMeetsTheBox) {
+TEST(GpuSelectionTree, BoxWalkReachesEveryTriangleThatMeetsTheBox) {
     DeterministicRng rng(11);
     const Mesh m = jaggedSheet(60, rng);
-    const gpu::MeshTree tree(m);
+    const gpu::SelectionTree tree(m);
     for (int q = 0; q < 50; ++q) {
         Aabb query;
         const glm::dvec3 c{rng.uniform(-0.2, 3.2), rng.uniform(-0.05, 0.08), rng.uniform(-0.2, 3.2)};
@@ -88,10 +88,10 @@ TEST(GpuMeshTree, BoxWalkReachesEveryTriangleThatMeetsTheBox) {
     }
 }
 
-TEST(GpuMeshTree, PlacedBoxesHoldThePlacedVertices) {
+TEST(GpuSelectionTree, PlacedBoxesHoldThePlacedVertices) {
     DeterministicRng rng(13);
     const Mesh m = jaggedSheet(20, rng);
-    const gpu::MeshTree tree(m);
+    const gpu::SelectionTree tree(m);
     for (int k = 0; k < 20; ++k) {
         // Turned about a random axis, scaled (0.001 to 1000, mirrored in half), far off.
         const double a = rng.uniform(0, 6.3), s = std::pow(10.0, rng.uniform(-3, 3)) * (k % 2 ? -1 : 1);

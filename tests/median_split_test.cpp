@@ -1,4 +1,4 @@
-// The median-split builder behind core's MeshTree and the geometry stage's BoxTree
+// The median-split builder behind every BoxTree (core/box_tree.h)
 // (core/median_split.h): every item once, leaves of at most leafSize, each split at the
 // median along the longest side of its items' centres, parents before children with
 // siblings side by side, and the same nodes and order on one thread as on many.
@@ -130,6 +130,36 @@ TEST(MedianSplit, CoarseLeavesOrderedAsAFinerTree) {
         std::sort(kept.begin(), kept.end());
         std::sort(got.begin(), got.end());
         EXPECT_EQ(got, kept);
+    }
+}
+
+// Ties by item (the GPU confirmation's tree): every node holds the same items whatever the
+// entries' order before the splits, on centres with many ties.
+TEST(MedianSplit, TiesByItemDependOnlyOnTheSetOfEntries) {
+    std::mt19937 rng(8);
+    for (size_t n : {9u, 1000u, 40000u}) {
+        SCOPED_TRACE("n " + std::to_string(n));
+        const std::vector<glm::dvec3> centres = sheetCentres(n, rng);
+        std::vector<SplitEntry> sorted(n), shuffled;
+        for (uint32_t k = 0; k < n; ++k) sorted[k] = {centres[k], k};
+        shuffled = sorted;
+        std::shuffle(shuffled.begin(), shuffled.end(), rng);
+        const std::vector<SplitNode> a = medianSplit(sorted, 8, 0, SplitTies::ByItem);
+        const std::vector<SplitNode> b = medianSplit(shuffled, 8, 0, SplitTies::ByItem);
+        std::vector<uint32_t> order(n);
+        for (size_t k = 0; k < n; ++k) order[k] = sorted[k].item;
+        expectValidSplit(a, order, centres, 8, n);
+        ASSERT_EQ(a.size(), b.size());
+        for (size_t k = 0; k < a.size(); ++k) {
+            ASSERT_EQ(a[k].begin, b[k].begin);
+            ASSERT_EQ(a[k].end, b[k].end);
+            ASSERT_EQ(a[k].left, b[k].left);
+            std::vector<uint32_t> x, y;
+            for (uint32_t i = a[k].begin; i < a[k].end; ++i) x.push_back(sorted[i].item), y.push_back(shuffled[i].item);
+            std::sort(x.begin(), x.end());
+            std::sort(y.begin(), y.end());
+            ASSERT_EQ(x, y) << "node " << k;
+        }
     }
 }
 

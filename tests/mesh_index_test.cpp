@@ -209,7 +209,7 @@ TEST(MeshIndex, AreaScaleBoundsHoldEveryPlacedTriangle) {
 TEST(MeshIndex, ForEachVisitsEveryAcceptedTriangleOnce) {
     std::mt19937 rng(31);
     const Mesh mesh = jaggedSheet(60, rng);
-    const MeshTree& tree = vertexIndex(mesh).triangles;
+    const BoxTree<>& tree = vertexIndex(mesh).triangles;
     std::uniform_real_distribution<double> u(-2.0, 2.0);
     for (int q = 0; q < 30; ++q) {
         const glm::dvec3 c(u(rng), 0.0, u(rng));
@@ -217,7 +217,7 @@ TEST(MeshIndex, ForEachVisitsEveryAcceptedTriangleOnce) {
             return lo.x <= c.x + 0.3 && hi.x >= c.x - 0.3 && lo.z <= c.z + 0.3 && hi.z >= c.z - 0.3;
         };
         std::vector<uint32_t> visited;
-        tree.forEach(may, [&](uint32_t t) { visited.push_back(t); });
+        tree.visit(may, [&](uint32_t t) { visited.push_back(t); });
         std::sort(visited.begin(), visited.end());
         EXPECT_TRUE(std::adjacent_find(visited.begin(), visited.end()) == visited.end()) << "a triangle visited twice";
         size_t accepted = 0;
@@ -229,10 +229,10 @@ TEST(MeshIndex, ForEachVisitsEveryAcceptedTriangleOnce) {
             EXPECT_TRUE(std::binary_search(visited.begin(), visited.end(), t)) << "query " << q << " triangle " << t;
         }
         EXPECT_GT(accepted, 0u);
-        EXPECT_LE(visited.size(), accepted + size_t(MeshTree::kTriangleLeaf) * (accepted + 1)) << "query " << q;
+        EXPECT_LE(visited.size(), accepted + size_t(kTriangleLeaf) * (accepted + 1)) << "query " << q;
     }
     std::vector<uint32_t> all;
-    tree.forEach([](const glm::dvec3&, const glm::dvec3&) { return true; }, [&](uint32_t t) { all.push_back(t); });
+    tree.visit([](const glm::dvec3&, const glm::dvec3&) { return true; }, [&](uint32_t t) { all.push_back(t); });
     EXPECT_EQ(all.size(), mesh.triangles.size());
 }
 
@@ -245,7 +245,7 @@ TEST(MeshIndex, NodeBoundsHoldEveryVertex) {
         const glm::dvec3 dir = glm::normalize(glm::dvec3(0.3, -1.0, 0.2 * rep - 3.0));
         for (const VertexTree::Node& n : tree.nodes())
             for (uint32_t k = n.begin; k < n.end; ++k) {
-                const glm::dvec3& p = mesh.positions[tree.order()[k]];
+                const glm::dvec3& p = mesh.positions[tree.items()[k]];
                 for (int axis = 0; axis < 3; ++axis)
                     for (double s : {1.0, -1.0})
                         EXPECT_LE(s * t.apply(p)[axis], placedCoordinateUpper(t, axis, s, n.lo, n.hi));
@@ -266,7 +266,7 @@ TEST(MeshIndex, VertexTreesMirrorTheTriangleTreeExactlyAndCompletely) {
     const MeshVertexIndex& index = vertexIndex(mesh);
     for (const VertexTree* tree : {index.used, index.positions, index.group[0], index.group[1], index.groupWithArea[0]}) {
         ASSERT_FALSE(tree->empty());
-        std::vector<uint32_t> items = tree->order();
+        std::vector<uint32_t> items = tree->items();
         std::sort(items.begin(), items.end());
         EXPECT_TRUE(std::adjacent_find(items.begin(), items.end()) == items.end()) << "a vertex twice";
         const std::vector<VertexTree::Node>& nodes = tree->nodes();
@@ -276,35 +276,35 @@ TEST(MeshIndex, VertexTreesMirrorTheTriangleTreeExactlyAndCompletely) {
             const VertexTree::Node& n = nodes[k];
             glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
             for (uint32_t i = n.begin; i < n.end; ++i) {
-                lo = glm::min(lo, mesh.positions[tree->order()[i]]);
-                hi = glm::max(hi, mesh.positions[tree->order()[i]]);
+                lo = glm::min(lo, mesh.positions[tree->items()[i]]);
+                hi = glm::max(hi, mesh.positions[tree->items()[i]]);
             }
             EXPECT_TRUE(lo == n.lo && hi == n.hi) << "node " << k;
             EXPECT_LT(n.begin, n.end) << "an empty node";
             if (n.left < 0) {
                 EXPECT_LE(n.end - n.begin, tree == index.positions ? 16u : 48u);
             } else {
-                const VertexTree::Node &a = nodes[size_t(n.left)], &b = nodes[size_t(n.right)];
+                const VertexTree::Node &a = nodes[size_t(n.left)], &b = nodes[size_t(n.right())];
                 EXPECT_GT(n.left, int32_t(k));
                 EXPECT_EQ(a.begin, n.begin);
                 EXPECT_EQ(a.end, b.begin);
                 EXPECT_EQ(b.end, n.end);
-                level[size_t(n.left)] = level[size_t(n.right)] = level[k] + 1;
+                level[size_t(n.left)] = level[size_t(n.right())] = level[k] + 1;
             }
             depth = std::max(depth, level[k]);
         }
         int triangleDepth = 0;
         {
-            const std::vector<MeshTree::Node>& tn = index.triangles.nodes();
+            const std::vector<BoxTree<>::Node>& tn = index.triangles.nodes();
             std::vector<int> tl(tn.size(), 1);
             for (size_t k = 0; k < tn.size(); ++k) {
-                if (tn[k].left >= 0) tl[size_t(tn[k].left)] = tl[size_t(tn[k].right)] = tl[k] + 1;
+                if (tn[k].left >= 0) tl[size_t(tn[k].left)] = tl[size_t(tn[k].right())] = tl[k] + 1;
                 triangleDepth = std::max(triangleDepth, tl[k]);
             }
         }
         EXPECT_LE(depth, tree == index.positions ? int(std::ceil(std::log2(double(tree->size()) / 16.0))) + 2 : triangleDepth);
         // The same maxima as a tree of median splits over the same vertices.
-        const VertexTree median(mesh.positions, tree->order());
+        const VertexTree median = makeVertexTree(mesh.positions, tree->items());
         for (int rep = 0; rep < 20; ++rep) {
             const RowTransform t = randomTransform(rng, rep % 2 ? 1e5 : 0.0);
             std::uniform_real_distribution<double> unit(-1.0, 1.0);

@@ -15,7 +15,7 @@
 
 #include <gtest/gtest.h>
 
-#include "geometry/box_tree.h"
+#include "geometry/broad_phase.h"
 #include "geometry/exact_frustum.h"
 #include "geometry/shadow_query.h"
 
@@ -60,7 +60,7 @@ glm::dvec3 toMesh(const RowTransform& m, const glm::dvec3& x) {
 
 }  // namespace
 
-TEST(BoxTree, VisitsExactlyTheOverlappingItems) {
+TEST(ObjectTree, VisitsExactlyTheOverlappingItems) {
     std::mt19937_64 rng(5);
     std::uniform_real_distribution<double> u(0.0, 100.0), s(0.0, 3.0);
     for (size_t n : {size_t(0), size_t(1), size_t(7), size_t(1000), size_t(40000)}) {
@@ -71,7 +71,7 @@ TEST(BoxTree, VisitsExactlyTheOverlappingItems) {
             b.max = c + glm::dvec3(s(rng), s(rng), s(rng));
         }
         if (n > 3) boxes[3] = Aabb{};  // an empty box is left out
-        const BoxTree tree(boxes);
+        const ObjectTree tree(boxes);
         EXPECT_EQ(tree.size(), n > 3 ? n - 1 : n);
         for (int q = 0; q < 20; ++q) {
             Aabb query;
