@@ -575,6 +575,143 @@ int runBackends(const std::vector<WorldRun>& runs, const Options& o) {
 }
 }  // namespace
 
+// Every world's analytic bakes, --rounds times, one world after the other (in alternating
+// order from round to round), so that the figures compared across worlds are measured
+// close together in time.
+std::vector<std::vector<BakeRound>> bakeRounds(std::vector<WorldRun>& runs, const Options& o) {
+    std::error_code ec;
+    std::vector<std::vector<BakeRound>> rounds(runs.size());
+    for (int r = 0; r < o.rounds; ++r) {
+        for (size_t i = 0; i < runs.size(); ++i) {
+            const size_t at = r % 2 == 0 ? i : runs.size() - 1 - i;
+            WorldRun& w = runs[at];
+            const fs::path out = o.work / ("bake-" + w.spec.name + ".json");
+            fs::remove(out, ec);
+            if (o.rounds > 1) std::fprintf(stderr, "[%s] baking (round %d of %d) ...\n", w.spec.name.c_str(), r + 1, o.rounds);
+            else std::fprintf(stderr, "[%s] baking ...\n", w.spec.name.c_str());
+            BakeRound round;
+            round.round = r + 1;
+            round.position = int(i) + 1;
+            round.loadBefore = loadAverage();
+            const Job job = runJob(o.fork, [&] { return bakeChild(w.spec, w.dir, o, out, false); });
+            round.loadAfter = loadAverage();
+            round.job = job;
+            round.ok = job.ok && readJson(out, round.bake);
+            if (!round.ok) std::fprintf(stderr, "bake_bench: bake of %s failed\n", w.spec.name.c_str());
+            rounds[at].push_back(std::move(round));
+        }
+    }
+    return rounds;
+}
+
+// A world's figures are those of its median round (by total seconds), its peak RSS the
+// largest of any round; a failed round fails the world. Returns M and L when baked.
+std::pair<WorldRun*, WorldRun*> takeMedianRounds(std::vector<WorldRun>& runs, std::vector<std::vector<BakeRound>>& rounds,
+                                                 const Options& o) {
+    WorldRun* bakedM = nullptr;
+    WorldRun* bakedL = nullptr;
+    for (size_t i = 0; i < runs.size(); ++i) {
+        WorldRun& w = runs[i];
+        w.contiguous = o.contiguous;
+        std::vector<BakeRound>& rs = rounds[i];
+        const bool allOk = std::all_of(rs.begin(), rs.end(), [](const BakeRound& x) { return x.ok; });
+        if (!allOk) continue;  // not baked: a failed round fails the world
+        std::vector<size_t> byTime(rs.size());
+        for (size_t k = 0; k < rs.size(); ++k) byTime[k] = k;
+        std::sort(byTime.begin(), byTime.end(), [&](size_t a, size_t b) {
+            return rs[a].bake["totalSeconds"].get<double>() < rs[b].bake["totalSeconds"].get<double>();
+        });
+        const BakeRound& median = rs[byTime[(rs.size() - 1) / 2]];  // the lower median of an even count
+        w.baked = true;
+        w.bake = median.bake;
+        w.loadBefore = median.loadBefore;
+        w.loadAfter = median.loadAfter;
+        w.bakeJobCpu = median.job.cpuSeconds;
+        w.bakeJobWall = median.job.wallSeconds;
+        for (const BakeRound& x : rs) {
+            w.bakePeakKiB = std::max(w.bakePeakKiB, x.job.maxRssKiB);
+            w.rounds.push_back({{"round", x.round}, {"position", x.position}, {"totalSeconds", x.bake["totalSeconds"]},
+                                {"cpuSeconds", x.bake["cpuSeconds"]}, {"peakRssKiB", x.job.maxRssKiB}});
+        }
+        if (w.spec.name == "M") bakedM = &w;
+        if (w.spec.name == "L") bakedL = &w;
+    }
+    return {bakedM, bakedL};
+}
+
+// The bake with neighbours-rectangle windows, compared with the whole bake `out`.
+void runWindowOnly(WorldRun& w, const Options& o, const fs::path& out) {
+    std::error_code ec;
+    const fs::path wout = o.work / ("window-" + w.spec.name + ".json");
+    fs::remove(wout, ec);
+    std::fprintf(stderr, "[%s] baking with neighbours-rectangle windows ...\n", w.spec.name.c_str());
+    const Job wj = runJob(o.fork, [&] { return bakeChild(w.spec, w.dir, o, wout, false, true); });
+    w.windowRun = true;
+    w.windowPeakKiB = wj.maxRssKiB;
+    w.windowBaked = wj.ok && readJson(wout, w.windowBake);
+    if (w.windowBaked) compareWindowOnly(w, out.string() + ".bits", wout.string() + ".bits");
+}
+
+// The original GPU method, compared bit by bit with the analytic bake `out`.
+void runGpuBaseline(WorldRun& w, const Options& o, const fs::path& out) {
+    std::error_code ec;
+    const fs::path gout = o.work / ("gpu-" + w.spec.name + ".json");
+    fs::remove(gout, ec);
+    std::fprintf(stderr, "[%s] original GPU method at %d px ...\n", w.spec.name.c_str(), o.gpuBaselineResolution);
+    const Job gj = runJob(o.fork, [&] { return bakeChild(w.spec, w.dir, o, gout, true); });
+    w.gpuRun = true;
+    w.gpuPeakKiB = gj.maxRssKiB;
+    w.gpuBaked = gj.ok && readJson(gout, w.gpuBake);
+    if (!w.gpuBaked) {
+        w.gpuFailure = gj.failure.empty() ? "no results" : gj.failure;
+        w.gpuBake = {{"gpuResolution", o.gpuBaselineResolution}};
+    } else {
+        compareWithGpu(w, out.string() + ".bits", gout.string() + ".bits");
+    }
+}
+
+// The bare Embree loops on the window of chunk (0, 0), as many rays as the raycast stage cast.
+void runBaseline(WorldRun& w, const Options& o) {
+    std::error_code ec;
+    const json* rc = w.stage("raycast");
+    uint64_t n = o.baselineRays;
+    if (n == 0) n = std::min<uint64_t>(rc ? (*rc)["raysCast"].get<uint64_t>() : 0, kDefaultBaselineCap);
+    if (n == 0) n = kDefaultBaselineCap;
+    const fs::path bout = o.work / ("baseline-" + w.spec.name + ".json");
+    fs::remove(bout, ec);
+    std::fprintf(stderr, "[%s] Embree baseline, %s rays per loop ...\n", w.spec.name.c_str(), count(n).c_str());
+    // Per light, the bits the raycast stage examined (kept + left undecided + culled after it).
+    std::vector<double> weights;
+    for (const json& l : w.bake["lights"]) {
+        double x = 0;
+        for (auto it = l["counts"].begin(); it != l["counts"].end(); ++it)
+            if (it.key() == "kept" || it.key() == "undecided" || it.key() == "culled:geometry" || it.key() == "culled:gpu")
+                x += it.value().get<double>();
+        weights.push_back(x);
+    }
+    const Job bj = runJob(o.fork, [&] {
+        const json j = runEmbreeBaseline(w.dir.string(), 0, 0, n, o.threads, weights);
+        if (j.contains("error")) std::fprintf(stderr, "bake_bench: baseline: %s\n", j["error"].get<std::string>().c_str());
+        return writeJson(bout, j) && !j.contains("error") ? 0 : 1;
+    });
+    w.baselined = bj.ok && readJson(bout, w.baseline);
+    w.baselinePeakKiB = bj.maxRssKiB;
+}
+
+// Every figure of every world as JSON (--json).
+void writeAllJson(const std::vector<WorldRun>& runs, const fs::path& file) {
+    json all = json::array();
+    for (const WorldRun& w : runs)
+        all.push_back({{"world", w.spec.name}, {"dir", w.dir.string()}, {"stats", w.stats}, {"bake", w.bake},
+                       {"bakePeakRssKiB", w.bakePeakKiB}, {"bakeRounds", w.rounds}, {"bakeAgain", w.again}, {"baseline", w.baseline}, {"baselinePeakRssKiB", w.baselinePeakKiB},
+                       {"gpuBaseline", {{"run", w.gpuRun}, {"ok", w.gpuBaked}, {"failure", w.gpuFailure}, {"bake", w.gpuBake},
+                                        {"peakRssKiB", w.gpuPeakKiB}, {"culls", w.gpuCulls}, {"falseCulls", w.gpuFalseCulls},
+                                        {"analyticCullsGpuKeeps", w.analyticCullsGpuKeeps}, {"comparedBits", w.comparedBits}}},
+                       {"windowOnly", {{"run", w.windowRun}, {"ok", w.windowBaked}, {"bake", w.windowBake},
+                                       {"peakRssKiB", w.windowPeakKiB}, {"differences", w.windowDiff}}}});
+    writeJson(file, all);
+}
+
 int main(int argc, char** argv) {
     tuneHeapForLongBakes();  // as the shadowcull executable does
     const Options o = parseArgs(argc, argv);
@@ -607,55 +744,10 @@ int main(int argc, char** argv) {
     // figures compared across worlds are measured close together in time; 2. the baselines.
     // With --rounds, every round's bake of a world is kept; the world's figures are then
     // those of its median round (by total seconds), its peak RSS the largest of any round.
-    WorldRun* bakedM = nullptr;
-    WorldRun* bakedL = nullptr;
-    std::vector<std::vector<BakeRound>> rounds(runs.size());
-    for (int r = 0; r < o.rounds; ++r) {
-        for (size_t i = 0; i < runs.size(); ++i) {
-            const size_t at = r % 2 == 0 ? i : runs.size() - 1 - i;
-            WorldRun& w = runs[at];
-            const fs::path out = o.work / ("bake-" + w.spec.name + ".json");
-            fs::remove(out, ec);
-            if (o.rounds > 1) std::fprintf(stderr, "[%s] baking (round %d of %d) ...\n", w.spec.name.c_str(), r + 1, o.rounds);
-            else std::fprintf(stderr, "[%s] baking ...\n", w.spec.name.c_str());
-            BakeRound round;
-            round.round = r + 1;
-            round.position = int(i) + 1;
-            round.loadBefore = loadAverage();
-            const Job job = runJob(o.fork, [&] { return bakeChild(w.spec, w.dir, o, out, false); });
-            round.loadAfter = loadAverage();
-            round.job = job;
-            round.ok = job.ok && readJson(out, round.bake);
-            if (!round.ok) std::fprintf(stderr, "bake_bench: bake of %s failed\n", w.spec.name.c_str());
-            rounds[at].push_back(std::move(round));
-        }
-    }
-    for (size_t i = 0; i < runs.size(); ++i) {
-        WorldRun& w = runs[i];
-        w.contiguous = o.contiguous;
-        std::vector<BakeRound>& rs = rounds[i];
-        const bool allOk = std::all_of(rs.begin(), rs.end(), [](const BakeRound& x) { return x.ok; });
-        if (!allOk) continue;  // not baked: a failed round fails the world
-        std::vector<size_t> byTime(rs.size());
-        for (size_t k = 0; k < rs.size(); ++k) byTime[k] = k;
-        std::sort(byTime.begin(), byTime.end(), [&](size_t a, size_t b) {
-            return rs[a].bake["totalSeconds"].get<double>() < rs[b].bake["totalSeconds"].get<double>();
-        });
-        const BakeRound& median = rs[byTime[(rs.size() - 1) / 2]];  // the lower median of an even count
-        w.baked = true;
-        w.bake = median.bake;
-        w.loadBefore = median.loadBefore;
-        w.loadAfter = median.loadAfter;
-        w.bakeJobCpu = median.job.cpuSeconds;
-        w.bakeJobWall = median.job.wallSeconds;
-        for (const BakeRound& x : rs) {
-            w.bakePeakKiB = std::max(w.bakePeakKiB, x.job.maxRssKiB);
-            w.rounds.push_back({{"round", x.round}, {"position", x.position}, {"totalSeconds", x.bake["totalSeconds"]},
-                                {"cpuSeconds", x.bake["cpuSeconds"]}, {"peakRssKiB", x.job.maxRssKiB}});
-        }
-        if (w.spec.name == "M") bakedM = &w;
-        if (w.spec.name == "L") bakedL = &w;
-    }
+    std::vector<std::vector<BakeRound>> rounds = bakeRounds(runs, o);
+    const std::pair<WorldRun*, WorldRun*> ml = takeMedianRounds(runs, rounds, o);
+    WorldRun* bakedM = ml.first;
+    WorldRun* bakedL = ml.second;
     if (bakedM && bakedL) {
         const fs::path again = o.work / "bake-M-again.json";
         fs::remove(again, ec);
@@ -667,56 +759,10 @@ int main(int argc, char** argv) {
     for (WorldRun& w : runs) {
         if (!w.baked) continue;
         const fs::path out = o.work / ("bake-" + w.spec.name + ".json");
-        if (o.windowOnly) {
-            const fs::path wout = o.work / ("window-" + w.spec.name + ".json");
-            fs::remove(wout, ec);
-            std::fprintf(stderr, "[%s] baking with neighbours-rectangle windows ...\n", w.spec.name.c_str());
-            const Job wj = runJob(o.fork, [&] { return bakeChild(w.spec, w.dir, o, wout, false, true); });
-            w.windowRun = true;
-            w.windowPeakKiB = wj.maxRssKiB;
-            w.windowBaked = wj.ok && readJson(wout, w.windowBake);
-            if (w.windowBaked) compareWindowOnly(w, out.string() + ".bits", wout.string() + ".bits");
-        }
-        if (std::find(o.gpuBaselineSizes.begin(), o.gpuBaselineSizes.end(), w.spec.name) != o.gpuBaselineSizes.end()) {
-            const fs::path gout = o.work / ("gpu-" + w.spec.name + ".json");
-            fs::remove(gout, ec);
-            std::fprintf(stderr, "[%s] original GPU method at %d px ...\n", w.spec.name.c_str(), o.gpuBaselineResolution);
-            const Job gj = runJob(o.fork, [&] { return bakeChild(w.spec, w.dir, o, gout, true); });
-            w.gpuRun = true;
-            w.gpuPeakKiB = gj.maxRssKiB;
-            w.gpuBaked = gj.ok && readJson(gout, w.gpuBake);
-            if (!w.gpuBaked) {
-                w.gpuFailure = gj.failure.empty() ? "no results" : gj.failure;
-                w.gpuBake = {{"gpuResolution", o.gpuBaselineResolution}};
-            } else {
-                compareWithGpu(w, out.string() + ".bits", gout.string() + ".bits");
-            }
-        }
-        if (o.baseline) {
-            const json* rc = w.stage("raycast");
-            uint64_t n = o.baselineRays;
-            if (n == 0) n = std::min<uint64_t>(rc ? (*rc)["raysCast"].get<uint64_t>() : 0, kDefaultBaselineCap);
-            if (n == 0) n = kDefaultBaselineCap;
-            const fs::path bout = o.work / ("baseline-" + w.spec.name + ".json");
-            fs::remove(bout, ec);
-            std::fprintf(stderr, "[%s] Embree baseline, %s rays per loop ...\n", w.spec.name.c_str(), count(n).c_str());
-            // Per light, the bits the raycast stage examined (kept + left undecided + culled after it).
-            std::vector<double> weights;
-            for (const json& l : w.bake["lights"]) {
-                double x = 0;
-                for (auto it = l["counts"].begin(); it != l["counts"].end(); ++it)
-                    if (it.key() == "kept" || it.key() == "undecided" || it.key() == "culled:geometry" || it.key() == "culled:gpu")
-                        x += it.value().get<double>();
-                weights.push_back(x);
-            }
-            const Job bj = runJob(o.fork, [&] {
-                const json j = runEmbreeBaseline(w.dir.string(), 0, 0, n, o.threads, weights);
-                if (j.contains("error")) std::fprintf(stderr, "bake_bench: baseline: %s\n", j["error"].get<std::string>().c_str());
-                return writeJson(bout, j) && !j.contains("error") ? 0 : 1;
-            });
-            w.baselined = bj.ok && readJson(bout, w.baseline);
-            w.baselinePeakKiB = bj.maxRssKiB;
-        }
+        if (o.windowOnly) runWindowOnly(w, o, out);
+        if (std::find(o.gpuBaselineSizes.begin(), o.gpuBaselineSizes.end(), w.spec.name) != o.gpuBaselineSizes.end())
+            runGpuBaseline(w, o, out);
+        if (o.baseline) runBaseline(w, o);
     }
 
     printWorlds(runs);
@@ -727,18 +773,7 @@ int main(int argc, char** argv) {
 
     printComparisons(runs);
 
-    if (!o.jsonOut.empty()) {
-        json all = json::array();
-        for (const WorldRun& w : runs)
-            all.push_back({{"world", w.spec.name}, {"dir", w.dir.string()}, {"stats", w.stats}, {"bake", w.bake},
-                           {"bakePeakRssKiB", w.bakePeakKiB}, {"bakeRounds", w.rounds}, {"bakeAgain", w.again}, {"baseline", w.baseline}, {"baselinePeakRssKiB", w.baselinePeakKiB},
-                           {"gpuBaseline", {{"run", w.gpuRun}, {"ok", w.gpuBaked}, {"failure", w.gpuFailure}, {"bake", w.gpuBake},
-                                            {"peakRssKiB", w.gpuPeakKiB}, {"culls", w.gpuCulls}, {"falseCulls", w.gpuFalseCulls},
-                                            {"analyticCullsGpuKeeps", w.analyticCullsGpuKeeps}, {"comparedBits", w.comparedBits}}},
-                           {"windowOnly", {{"run", w.windowRun}, {"ok", w.windowBaked}, {"bake", w.windowBake},
-                                           {"peakRssKiB", w.windowPeakKiB}, {"differences", w.windowDiff}}}});
-        writeJson(o.jsonOut, all);
-    }
+    if (!o.jsonOut.empty()) writeAllJson(runs, o.jsonOut);
     for (const WorldRun& w : runs)
         if (!w.baked) return 1;
     return 0;

@@ -287,8 +287,8 @@ void printGpuBaseline(const std::vector<WorldRun>& runs) {
 
 
 
-void printComparisons(const std::vector<WorldRun>& runs) {
-    // Embree baseline.
+// The raycast stage against the bare Embree loops, per world.
+void printEmbreeComparison(const std::vector<WorldRun>& runs) {
     std::printf("\n## Raycast stage vs a bare Embree loop over the same scene\n\n");
     std::printf("Scene: the window of chunk (0,0) (it and its 8 neighbours), built as the stage builds it. Rays: from "
                 "each light through the sample points of every centre group it reaches, each light's share weighted by the "
@@ -319,14 +319,19 @@ void printComparisons(const std::vector<WorldRun>& runs) {
                     rate(ah).c_str(), b["allhits1"]["metric"].get<double>(), rate(pipe).c_str(), pipe / o1, pipe / o16,
                     pipe / ch);
     }
+}
 
-    // Targets.
-    const WorldRun* M = nullptr;
-    const WorldRun* L = nullptr;
-    for (const WorldRun& w : runs) {
-        if (w.spec.name == "M" && w.baked) M = &w;
-        if (w.spec.name == "L" && w.baked) L = &w;
-    }
+// The baked world named `name`, if any.
+const WorldRun* bakedWorld(const std::vector<WorldRun>& runs, const char* name) {
+    const WorldRun* found = nullptr;
+    for (const WorldRun& w : runs)
+        if (w.spec.name == name && w.baked) found = &w;
+    return found;
+}
+
+// The targets on S, M, L: against the GPU method, the bare Embree loop, linear time and
+// L's memory.
+void printForestTargets(const std::vector<WorldRun>& runs, const WorldRun* M, const WorldRun* L) {
     std::printf("\n## Targets (issue 6), measured side by side in this run\n\n| target | measured | status |\n|---|---|---|\n");
     {
         const char* what = "analytic bake >= %.0fx faster than the GPU method at 2048 on M, zero false culls";
@@ -399,86 +404,82 @@ void printComparisons(const std::vector<WorldRun>& runs) {
     } else {
         std::printf("| peak memory of L < %.0f GiB | n/a (L not baked) | not measured |\n", kTargetMemoryGiB);
     }
+}
 
-    // Issue 13: the whole bake of the dense world against the same placements of 2k-triangle
-    // meshes (D2k), both baked in this run.
-    {
-        const WorldRun* D = nullptr;
-        const WorldRun* D2k = nullptr;
-        for (const WorldRun& w : runs) {
-            if (w.spec.name == "D" && w.baked) D = &w;
-            if (w.spec.name == "D2k" && w.baked) D2k = &w;
-        }
-        if (D || D2k) {
-            std::printf("\n## Targets (issue 13), measured side by side in this run\n\n| target | measured | status |\n|---|---|---|\n");
-            if (D && D2k && D->bake["chunksBaked"] == D2k->bake["chunksBaked"]) {
-                const double ratio = D->bake["totalSeconds"].get<double>() / D2k->bake["totalSeconds"].get<double>();
-                const double cpuRatio = D->bake["cpuSeconds"].get<double>() / D2k->bake["cpuSeconds"].get<double>();
-                // With --rounds: each world's median round, and the ratio of every round's pair.
-                std::string perRound;
-                const size_t n = std::min(D->rounds.size(), D2k->rounds.size());
-                if (n > 1) {
-                    std::vector<double> r(n);
-                    for (size_t k = 0; k < n; ++k)
-                        r[k] = D->rounds[k]["totalSeconds"].get<double>() / D2k->rounds[k]["totalSeconds"].get<double>();
-                    const auto [lo, hi] = std::minmax_element(r.begin(), r.end());
-                    perRound = fmt(", medians of %.0f rounds in alternating order; ", double(n)) + fmt("rounds %.2fx", *lo) +
-                               fmt(" to %.2fx", *hi);
-                }
-                std::printf("| whole bake of D within %.0fx of D2k (same placements, 2k-triangle meshes) | %.2fx (D %s s, D2k %s s; "
-                            "CPU time %.2fx%s)%s | %s |\n",
-                            kTargetDenseRatio, ratio, seconds(D->bake["totalSeconds"].get<double>()).c_str(),
-                            seconds(D2k->bake["totalSeconds"].get<double>()).c_str(), cpuRatio, perRound.c_str(),
-                            D->partial() ? fmt(", %.0f chunks of each", D->bake["chunksBaked"].get<double>()).c_str() : "",
-                            ratio <= kTargetDenseRatio ? "met" : "NOT met");
-            } else {
-                std::printf("| whole bake of D within %.0fx of D2k | n/a (needs D and D2k on the same chunks: --sizes D,D2k) | not "
-                            "measured |\n",
-                            kTargetDenseRatio);
+// The whole bake of the dense world against the same placements of 2k-triangle meshes
+// (D2k), both baked in this run.
+void printDenseTargets(const std::vector<WorldRun>& runs) {
+    const WorldRun* D = bakedWorld(runs, "D");
+    const WorldRun* D2k = bakedWorld(runs, "D2k");
+    if (D || D2k) {
+        std::printf("\n## Targets (issue 13), measured side by side in this run\n\n| target | measured | status |\n|---|---|---|\n");
+        if (D && D2k && D->bake["chunksBaked"] == D2k->bake["chunksBaked"]) {
+            const double ratio = D->bake["totalSeconds"].get<double>() / D2k->bake["totalSeconds"].get<double>();
+            const double cpuRatio = D->bake["cpuSeconds"].get<double>() / D2k->bake["cpuSeconds"].get<double>();
+            // With --rounds: each world's median round, and the ratio of every round's pair.
+            std::string perRound;
+            const size_t n = std::min(D->rounds.size(), D2k->rounds.size());
+            if (n > 1) {
+                std::vector<double> r(n);
+                for (size_t k = 0; k < n; ++k)
+                    r[k] = D->rounds[k]["totalSeconds"].get<double>() / D2k->rounds[k]["totalSeconds"].get<double>();
+                const auto [lo, hi] = std::minmax_element(r.begin(), r.end());
+                perRound = fmt(", medians of %.0f rounds in alternating order; ", double(n)) + fmt("rounds %.2fx", *lo) +
+                           fmt(" to %.2fx", *hi);
             }
-            std::printf("| geometry stage >= 10x faster on D, >= 3x on R than before commit 82a0666, same verdicts | not measured "
-                        "by this program (needs the old code): see docs/performance.md, issue 13 | not measured |\n");
+            std::printf("| whole bake of D within %.0fx of D2k (same placements, 2k-triangle meshes) | %.2fx (D %s s, D2k %s s; "
+                        "CPU time %.2fx%s)%s | %s |\n",
+                        kTargetDenseRatio, ratio, seconds(D->bake["totalSeconds"].get<double>()).c_str(),
+                        seconds(D2k->bake["totalSeconds"].get<double>()).c_str(), cpuRatio, perRound.c_str(),
+                        D->partial() ? fmt(", %.0f chunks of each", D->bake["chunksBaked"].get<double>()).c_str() : "",
+                        ratio <= kTargetDenseRatio ? "met" : "NOT met");
+        } else {
+            std::printf("| whole bake of D within %.0fx of D2k | n/a (needs D and D2k on the same chunks: --sizes D,D2k) | not "
+                        "measured |\n",
+                        kTargetDenseRatio);
+        }
+        std::printf("| geometry stage >= 10x faster on D, >= 3x on R than before commit 82a0666, same verdicts | not measured "
+                    "by this program (needs the old code): see docs/performance.md, issue 13 | not measured |\n");
+    }
+}
+
+// Memory follows the window, so a world 100x the size of M needs about M's memory and the
+// same time per chunk.
+void printWindowTargets(const std::vector<WorldRun>& runs, const WorldRun* M) {
+    const WorldRun* XL = bakedWorld(runs, "XL");
+    if (XL) {
+        std::printf("\n## Targets (issue 16), measured side by side in this run\n\n| target | measured | status |\n|---|---|---|\n");
+        if (M) {
+            const double mem = double(XL->bakePeakKiB) / double(M->bakePeakKiB);
+            std::printf("| peak RSS of XL (%s chunks read whole, %s baked) within %.1fx of M's | %.2fx (XL %s, M %s; chunks held "
+                        "at once: XL %s, M %s) | %s |\n",
+                        count(XL->bake["chunksTotal"].get<uint64_t>()).c_str(), count(XL->bake["chunksBaked"].get<uint64_t>()).c_str(),
+                        kTargetWindowMemory, mem, mib(double(XL->bakePeakKiB)).c_str(), mib(double(M->bakePeakKiB)).c_str(),
+                        count(XL->bake.value("peakLoadedChunks", uint64_t(0))).c_str(),
+                        count(M->bake.value("peakLoadedChunks", uint64_t(0))).c_str(), mem <= kTargetWindowMemory ? "met" : "NOT met");
+            const double t = XL->wholeBakePerChunk() / M->wholeBakePerChunk();
+            const double cpu = XL->wholeBakeCpuPerChunk() / M->wholeBakeCpuPerChunk();
+            // One-sided: a world 100 times M's must not make a chunk slower (XL's chunks may
+            // ask for less work than M's: fewer local lights reach its middle).
+            const bool wallMet = t <= 1 + kTargetLinearity, cpuMet = cpu <= 1 + kTargetLinearity;
+            std::printf("| XL time per chunk at most %.0f%% above M's | %.3f (XL %s s, M %s s per chunk; the scan of XL's %s chunk "
+                        "files %s s, counted per world chunk); CPU time per chunk the same way: %.3f (XL %s s, M %s s; bits "
+                        "past the reach stage per chunk: XL %.0f, M %.0f) | %s |\n",
+                        kTargetLinearity * 100, t, seconds(XL->wholeBakePerChunk()).c_str(), seconds(M->wholeBakePerChunk()).c_str(),
+                        count(XL->bake["chunksTotal"].get<uint64_t>()).c_str(), seconds(XL->bake["loadSeconds"].get<double>()).c_str(),
+                        cpu, seconds(XL->wholeBakeCpuPerChunk()).c_str(), seconds(M->wholeBakeCpuPerChunk()).c_str(),
+                        examinedPerChunk(*XL), examinedPerChunk(*M),
+                        wallMet ? (cpuMet ? "met" : "met on wall time (NOT met on CPU time)")
+                                : (cpuMet ? "NOT met on wall time (met on CPU time)" : "NOT met"));
+        } else {
+            std::printf("| peak RSS of XL within %.1fx of M's | n/a (needs M and XL in one run: --sizes M,XL) | not measured |\n",
+                        kTargetWindowMemory);
         }
     }
+}
 
-    // Issue 16: memory follows the window, so a world 100x the size of M needs about M's
-    // memory and the same time per chunk.
-    {
-        const WorldRun* XL = nullptr;
-        for (const WorldRun& w : runs)
-            if (w.spec.name == "XL" && w.baked) XL = &w;
-        if (XL) {
-            std::printf("\n## Targets (issue 16), measured side by side in this run\n\n| target | measured | status |\n|---|---|---|\n");
-            if (M) {
-                const double mem = double(XL->bakePeakKiB) / double(M->bakePeakKiB);
-                std::printf("| peak RSS of XL (%s chunks read whole, %s baked) within %.1fx of M's | %.2fx (XL %s, M %s; chunks held "
-                            "at once: XL %s, M %s) | %s |\n",
-                            count(XL->bake["chunksTotal"].get<uint64_t>()).c_str(), count(XL->bake["chunksBaked"].get<uint64_t>()).c_str(),
-                            kTargetWindowMemory, mem, mib(double(XL->bakePeakKiB)).c_str(), mib(double(M->bakePeakKiB)).c_str(),
-                            count(XL->bake.value("peakLoadedChunks", uint64_t(0))).c_str(),
-                            count(M->bake.value("peakLoadedChunks", uint64_t(0))).c_str(), mem <= kTargetWindowMemory ? "met" : "NOT met");
-                const double t = XL->wholeBakePerChunk() / M->wholeBakePerChunk();
-                const double cpu = XL->wholeBakeCpuPerChunk() / M->wholeBakeCpuPerChunk();
-                // One-sided: a world 100 times M's must not make a chunk slower (XL's chunks may
-                // ask for less work than M's: fewer local lights reach its middle).
-                const bool wallMet = t <= 1 + kTargetLinearity, cpuMet = cpu <= 1 + kTargetLinearity;
-                std::printf("| XL time per chunk at most %.0f%% above M's | %.3f (XL %s s, M %s s per chunk; the scan of XL's %s chunk "
-                            "files %s s, counted per world chunk); CPU time per chunk the same way: %.3f (XL %s s, M %s s; bits "
-                            "past the reach stage per chunk: XL %.0f, M %.0f) | %s |\n",
-                            kTargetLinearity * 100, t, seconds(XL->wholeBakePerChunk()).c_str(), seconds(M->wholeBakePerChunk()).c_str(),
-                            count(XL->bake["chunksTotal"].get<uint64_t>()).c_str(), seconds(XL->bake["loadSeconds"].get<double>()).c_str(),
-                            cpu, seconds(XL->wholeBakeCpuPerChunk()).c_str(), seconds(M->wholeBakeCpuPerChunk()).c_str(),
-                            examinedPerChunk(*XL), examinedPerChunk(*M),
-                            wallMet ? (cpuMet ? "met" : "met on wall time (NOT met on CPU time)")
-                                    : (cpuMet ? "NOT met on wall time (met on CPU time)" : "NOT met"));
-            } else {
-                std::printf("| peak RSS of XL within %.1fx of M's | n/a (needs M and XL in one run: --sizes M,XL) | not measured |\n",
-                            kTargetWindowMemory);
-            }
-        }
-    }
-
-    // Other processes on the machine skew wall times (and so every ratio above).
+// Other processes on the machine skew wall times (and so every ratio above).
+void printLoadCaution(const std::vector<WorldRun>& runs) {
     double worstLoad = 0;
     for (const WorldRun& w : runs)
         for (const std::string& l : {w.loadBefore, w.loadAfter}) worstLoad = std::max(worstLoad, std::atof(l.c_str()));
@@ -487,6 +488,15 @@ void printComparisons(const std::vector<WorldRun>& runs) {
                     "other processes took CPU time, so wall times and the ratios above are skewed (see \"cores busy\" and "
                     "the CPU-time ratio). Rerun on an idle machine for figures to quote.\n",
                     worstLoad, std::thread::hardware_concurrency());
+}
+
+void printComparisons(const std::vector<WorldRun>& runs) {
+    printEmbreeComparison(runs);
+    const WorldRun* M = bakedWorld(runs, "M");
+    printForestTargets(runs, M, bakedWorld(runs, "L"));
+    printDenseTargets(runs);
+    printWindowTargets(runs, M);
+    printLoadCaution(runs);
 }
 
 }  // namespace shadowcull::bench

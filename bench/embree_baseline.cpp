@@ -109,51 +109,12 @@ double secondsSince(std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-}  // namespace
-
-// See the file comment. `centre`: the chunk whose window is traced (with its neighbours as
-// in a bake); `rays`: how many rays each loop traces (0: the list once); `threads`: 0 = all;
-// `lightWeights`: per light, its share of the rays (empty: every ray of every light alike).
-nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int centreZ, uint64_t rays, int threads,
-                                 const std::vector<double>& lightWeights) {
-    using nlohmann::json;
-    json out;
-    std::unique_ptr<tbb::global_control> limit;
-    if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
-
-    const std::vector<ChunkCoord> only{{centreX, centreZ}};
-    Expected<Space> loaded = loadSpace(spaceDir, "", &only);
-    if (!loaded) {
-        out["error"] = loaded.error().what();
-        return out;
-    }
-    TerrainMeshes terrainMeshes;
-    const BakeWindow w = buildWindow(*loaded, only[0], terrainMeshes);
-
-    const std::string config = threads > 0 ? "threads=" + std::to_string(threads) : "";
-    RTCDevice device = rtcNewDevice(config.c_str());
-    if (!device) {
-        out["error"] = "Embree device could not be created";
-        return out;
-    }
-    const auto tBuild = std::chrono::steady_clock::now();
-    // The stage's own scene code (raycast/embree_scene.h), so both trace the same scene.
-    auto scenes = std::make_unique<raycast::EmbreeScenes>(device);
-    raycast::WindowScene windowScene = scenes->buildWindow(w);
-    RTCScene scene = windowScene.all();
-    uint64_t windowTriangles = 0;
-    std::unordered_set<const Mesh*> uniqueMeshes;
-    for (const WindowObject& o : w.objects) {
-        windowTriangles += o.mesh->triangles.size();
-        if (o.kind != ChunkObject::Kind::Terrain) uniqueMeshes.insert(o.mesh);
-    }
-    const double buildSeconds = secondsSince(tBuild);
-
-    // The stage's rays: per centre group and reaching light, through its sample points.
+// The stage's rays: per centre group and reaching light, through its sample points (one
+// list per light); `centreGroups` counts the groups with samples.
+std::vector<std::vector<Ray>> stageRays(const BakeWindow& w, uint64_t& centreGroups) {
     const double diag = glm::length(w.lsBounds.max - w.lsBounds.min);
     const double backDist = diag + 1.0;
     std::vector<std::vector<Ray>> perLight(w.lsLights.size());
-    uint64_t centreGroups = 0;
     for (uint32_t oi = 0; oi < w.objects.size(); ++oi) {
         const WindowObject& o = w.objects[oi];
         if (!o.centre || !o.source->castsShadow) continue;
@@ -197,14 +158,19 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
             }
         }
     }
-    // The mix: each light's share of the list follows `lightWeights` (the bits the stage
-    // examined per light in the whole bake), so that the loop traces directional and local
-    // rays in the stage's proportions; within a light, groups and samples in the stage's
-    // order (consecutive rays share a group and a light, as in the stage).
+    return perLight;
+}
+
+// The mix: each light's share of the list follows `lightWeights` (the bits the stage
+// examined per light in the whole bake), so that the loop traces directional and local
+// rays in the stage's proportions; within a light, groups and samples in the stage's
+// order (consecutive rays share a group and a light, as in the stage). `mix`: rays per
+// light; `available`: the rays of every light.
+std::vector<Ray> mixedRays(const BakeWindow& w, const std::vector<std::vector<Ray>>& perLight,
+                           const std::vector<double>& lightWeights, nlohmann::json& mix, uint64_t& available) {
     std::vector<double> weight(w.lsLights.size(), 1.0);
     if (lightWeights.size() == weight.size()) weight = lightWeights;
     double sum = 0;
-    uint64_t available = 0;
     for (size_t l = 0; l < weight.size(); ++l) {
         if (perLight[l].empty()) weight[l] = 0;
         sum += weight[l];
@@ -212,84 +178,50 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
     }
     const uint64_t listSize = std::min<uint64_t>(available, 2000000);
     std::vector<Ray> list;
-    json mix = json::object();
+    mix = nlohmann::json::object();
     for (size_t l = 0; l < weight.size() && sum > 0; ++l) {
         const uint64_t take = uint64_t(std::llround(double(listSize) * weight[l] / sum));
         for (uint64_t k = 0; k < take; ++k) list.push_back(perLight[l][size_t(k % perLight[l].size())]);
         if (take) mix[w.lsLights[l].name] = take;
     }
-    out["window"] = {{"objects", w.objects.size()}, {"triangles", windowTriangles}, {"uniqueMeshes", uniqueMeshes.size()},
-                     {"centreGroups", centreGroups}, {"raysAvailable", available}, {"rayList", list.size()},
-                     {"mix", mix}, {"buildSeconds", buildSeconds}};
-    if (list.empty()) {
-        out["error"] = "no rays in the window";
-        return out;
-    }
-    const uint64_t n = rays > 0 ? rays : list.size();
-    out["rays"] = n;
-    const size_t L = list.size();
-    auto rayAt = [&](uint64_t i) -> const Ray& { return list[size_t(i % L)]; };
+    return list;
+}
 
-    // Each loop runs kRepeats times over the same n rays; the median time counts (other
-    // load on a shared machine skews single runs). The first, untimed pass warms up.
-    constexpr int kRepeats = 3;
-    auto measure = [&](const char* name, uint64_t grain, auto body) {
-        std::vector<double> times;
-        double metric = 0;
-        for (int rep = -1; rep < kRepeats; ++rep) {
-            std::atomic<uint64_t> total{0};
-            const uint64_t count = rep < 0 ? std::min<uint64_t>(n, 100000) : n;
-            const auto t = std::chrono::steady_clock::now();
-            tbb::parallel_for(tbb::blocked_range<uint64_t>(0, count, grain), [&](const tbb::blocked_range<uint64_t>& r) {
-                const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);  // as the stage
-                total += body(r.begin(), r.end());
-            });
-            if (rep >= 0) times.push_back(secondsSince(t));
-            metric = double(total) / double(count);
-        }
-        std::sort(times.begin(), times.end());
-        const double median = times[times.size() / 2];
-        out[name] = {{"seconds", median}, {"raysPerSecond", double(n) / median}, {"metric", metric},
-                     {"allSeconds", times}};
-    };
-    auto ray1 = [](const Ray& s, float tfar) {
-        RTCRay ray{};
-        ray.org_x = s.org[0], ray.org_y = s.org[1], ray.org_z = s.org[2];
-        ray.dir_x = s.dir[0], ray.dir_y = s.dir[1], ray.dir_z = s.dir[2];
-        ray.tnear = 0.0f;
-        ray.tfar = tfar;
-        ray.mask = 0xffffffffu;
-        return ray;
-    };
+RTCRay ray1(const Ray& s, float tfar) {
+    RTCRay ray{};
+    ray.org_x = s.org[0], ray.org_y = s.org[1], ray.org_z = s.org[2];
+    ray.dir_x = s.dir[0], ray.dir_y = s.dir[1], ray.dir_z = s.dir[2];
+    ray.tnear = 0.0f;
+    ray.tfar = tfar;
+    ray.mask = 0xffffffffu;
+    return ray;
+}
 
-    // rtcOccluded1 on the segment light -> sample point (the shadow ray of "is p lit");
-    // metric: the fraction occluded (alpha-tested cards count as opaque here).
-    measure("occluded1", 4096, [&](uint64_t b, uint64_t e) {
+// The loops over rays [b, e) of the list (taken round-robin), each returning its metric's
+// count.
+struct Loops {
+    const BakeWindow& w;
+    RTCScene scene;
+    const std::vector<Ray>& list;
+    const Ray& rayAt(uint64_t i) const { return list[size_t(i % list.size())]; }
+
+    // rtcOccluded1 on the segment light -> sample point (`shadow`: the shadow ray of "is p
+    // lit") or on the whole ray (the stage's tfar: always ends on the sample's own surface
+    // at the latest, so it is cheap); the count of rays occluded (alpha-tested cards count
+    // as opaque here).
+    uint64_t occluded1(uint64_t b, uint64_t e, bool shadow) const {
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         uint64_t occluded = 0;
         for (uint64_t i = b; i < e; ++i) {
-            RTCRay ray = ray1(rayAt(i), rayAt(i).tshadow);
+            RTCRay ray = ray1(rayAt(i), shadow ? rayAt(i).tshadow : rayAt(i).tfar);
             rtcOccluded1(scene, &ctx, &ray);
             occluded += ray.tfar < 0;  // Embree sets tfar to -inf when occluded
         }
         return occluded;
-    });
-    // rtcOccluded1 on the whole ray (the stage's tfar): always ends on the sample's own
-    // surface at the latest, so it is cheap; for reference only.
-    measure("occluded1Full", 4096, [&](uint64_t b, uint64_t e) {
-        RTCIntersectContext ctx;
-        rtcInitIntersectContext(&ctx);
-        uint64_t occluded = 0;
-        for (uint64_t i = b; i < e; ++i) {
-            RTCRay ray = ray1(rayAt(i), rayAt(i).tfar);
-            rtcOccluded1(scene, &ctx, &ray);
-            occluded += ray.tfar < 0;
-        }
-        return occluded;
-    });
+    }
     // rtcOccluded16: packets of 16 consecutive segments (same group and light).
-    measure("occluded16", 256, [&](uint64_t b, uint64_t e) {
+    uint64_t occluded16(uint64_t b, uint64_t e) const {
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         alignas(64) RTCRay16 p;
@@ -313,10 +245,10 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
             for (int k = 0; k < 16; ++k) occluded += valid[k] && p.tfar[k] < 0;
         }
         return occluded;
-    });
+    }
     // rtcIntersect1 with the stage's transparency filter over the whole ray (the stage's ray
-    // for p); metric: the fraction whose closest opaque hit is on the target object.
-    measure("closest1", 4096, [&](uint64_t b, uint64_t e) {
+    // for p); the count whose closest opaque hit is on the target object.
+    uint64_t closest1(uint64_t b, uint64_t e) const {
         uint64_t onTarget = 0;
         for (uint64_t i = b; i < e; ++i) {
             const Ray& s = rayAt(i);
@@ -337,10 +269,10 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
             onTarget += object == s.object;
         }
         return onTarget;
-    });
+    }
     // rtcIntersect1 with an all-hit filter (the nearest 48 hits kept, every hit rejected so
-    // traversal visits all): the stage's method before commit 7d9003e; metric: hits per ray.
-    measure("allhits1", 1024, [&](uint64_t b, uint64_t e) {
+    // traversal visits all): the stage's method before commit 7d9003e; the hits visited.
+    uint64_t allHits1(uint64_t b, uint64_t e) const {
         std::vector<Hit> buffer(48);
         uint64_t visited = 0;
         for (uint64_t i = b; i < e; ++i) {
@@ -358,7 +290,92 @@ nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int c
             visited += hc.visited;
         }
         return visited;
-    });
+    }
+};
+
+// Runs `body` over n rays kRepeats times and writes out[name]: the median time counts
+// (other load on a shared machine skews single runs). The first, untimed pass warms up.
+// metric: body's count per ray.
+template <class Body>
+void measure(nlohmann::json& out, const char* name, uint64_t n, uint64_t grain, Body body) {
+    constexpr int kRepeats = 3;
+    std::vector<double> times;
+    double metric = 0;
+    for (int rep = -1; rep < kRepeats; ++rep) {
+        std::atomic<uint64_t> total{0};
+        const uint64_t count = rep < 0 ? std::min<uint64_t>(n, 100000) : n;
+        const auto t = std::chrono::steady_clock::now();
+        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, count, grain), [&](const tbb::blocked_range<uint64_t>& r) {
+            const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);  // as the stage
+            total += body(r.begin(), r.end());
+        });
+        if (rep >= 0) times.push_back(secondsSince(t));
+        metric = double(total) / double(count);
+    }
+    std::sort(times.begin(), times.end());
+    const double median = times[times.size() / 2];
+    out[name] = {{"seconds", median}, {"raysPerSecond", double(n) / median}, {"metric", metric}, {"allSeconds", times}};
+}
+
+}  // namespace
+
+// See the file comment. `centre`: the chunk whose window is traced (with its neighbours as
+// in a bake); `rays`: how many rays each loop traces (0: the list once); `threads`: 0 = all;
+// `lightWeights`: per light, its share of the rays (empty: every ray of every light alike).
+nlohmann::json runEmbreeBaseline(const std::string& spaceDir, int centreX, int centreZ, uint64_t rays, int threads,
+                                 const std::vector<double>& lightWeights) {
+    using nlohmann::json;
+    json out;
+    std::unique_ptr<tbb::global_control> limit;
+    if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
+
+    const std::vector<ChunkCoord> only{{centreX, centreZ}};
+    Expected<Space> loaded = loadSpace(spaceDir, "", &only);
+    if (!loaded) {
+        out["error"] = loaded.error().what();
+        return out;
+    }
+    TerrainMeshes terrainMeshes;
+    const BakeWindow w = buildWindow(*loaded, only[0], terrainMeshes);
+
+    const std::string config = threads > 0 ? "threads=" + std::to_string(threads) : "";
+    RTCDevice device = rtcNewDevice(config.c_str());
+    if (!device) {
+        out["error"] = "Embree device could not be created";
+        return out;
+    }
+    const auto tBuild = std::chrono::steady_clock::now();
+    // The stage's own scene code (raycast/embree_scene.h), so both trace the same scene.
+    auto scenes = std::make_unique<raycast::EmbreeScenes>(device);
+    raycast::WindowScene windowScene = scenes->buildWindow(w);
+    RTCScene scene = windowScene.all();
+    uint64_t windowTriangles = 0;
+    std::unordered_set<const Mesh*> uniqueMeshes;
+    for (const WindowObject& o : w.objects) {
+        windowTriangles += o.mesh->triangles.size();
+        if (o.kind != ChunkObject::Kind::Terrain) uniqueMeshes.insert(o.mesh);
+    }
+    const double buildSeconds = secondsSince(tBuild);
+
+    uint64_t centreGroups = 0, available = 0;
+    json mix;
+    const std::vector<Ray> list = mixedRays(w, stageRays(w, centreGroups), lightWeights, mix, available);
+    out["window"] = {{"objects", w.objects.size()}, {"triangles", windowTriangles}, {"uniqueMeshes", uniqueMeshes.size()},
+                     {"centreGroups", centreGroups}, {"raysAvailable", available}, {"rayList", list.size()},
+                     {"mix", mix}, {"buildSeconds", buildSeconds}};
+    if (list.empty()) {
+        out["error"] = "no rays in the window";
+        return out;
+    }
+    const uint64_t n = rays > 0 ? rays : list.size();
+    out["rays"] = n;
+    const Loops loops{w, scene, list};
+    measure(out, "occluded1", n, 4096, [&](uint64_t b, uint64_t e) { return loops.occluded1(b, e, true); });
+    // For reference only.
+    measure(out, "occluded1Full", n, 4096, [&](uint64_t b, uint64_t e) { return loops.occluded1(b, e, false); });
+    measure(out, "occluded16", n, 256, [&](uint64_t b, uint64_t e) { return loops.occluded16(b, e); });
+    measure(out, "closest1", n, 4096, [&](uint64_t b, uint64_t e) { return loops.closest1(b, e); });
+    measure(out, "allhits1", n, 1024, [&](uint64_t b, uint64_t e) { return loops.allHits1(b, e); });
     windowScene.reset();
     scenes.reset();  // its prototypes, before the device
     rtcReleaseDevice(device);

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 16 figures: a space baked in 1, 2 and 4 shards on this machine, as a Slurm array on
+# Sharding figures: a space baked in 1, 2 and 4 shards on this machine, as a Slurm array on
 # one node with CPUS cores and --cpus-per-task=1 would run them (at most CPUS shards at
 # a time, each --threads 1), plus the merge; prints a Markdown table. Needs GNU time.
 #

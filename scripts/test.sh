@@ -5,7 +5,7 @@ cd "$(dirname "$0")/.."
 scripts/install-deps.sh
 scripts/build.sh -DSHADOWCULL_BUILD_TESTS=ON
 ctest --test-dir build --output-on-failure -j "$(nproc)"
-# Issue 16: a one-node Slurm cluster started and stopped by the script bakes a generated
+# A one-node Slurm cluster started and stopped by the script bakes a generated
 # world in 4 shards + merge and compares with a single bake (skipped, with the reason, only
 # where slurm-wlm and munge cannot be installed).
 tests/cluster/slurm_test.sh build/bin
