@@ -42,9 +42,9 @@
 #include "bench/world_gen.h"
 #include "cli/pipeline.h"
 #include "cli/report.h"
-#include "core/heap_tuning.h"
 #include "gpu/gl_context.h"
 #include "tests/support/space_builder.h"
+#include "util/heap_tuning.h"
 
 namespace shadowcull::bench {
 // bench/embree_baseline.cpp (no header of its own: only this program calls it).

@@ -42,11 +42,12 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
-#include "core/float_mode.h"
 #include "core/scene.h"
 #include "core/window.h"
+#include "io/scene_reader.h"
 #include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
+#include "util/float_mode.h"
 
 namespace shadowcull::bench {
 

@@ -11,9 +11,9 @@
 #include "cli/output_guard.h"
 #include "cli/report.h"
 #include "cli/resume.h"
-#include "core/chunk_writer.h"
-#include "core/file_read.h"
-#include "core/hash.h"
+#include "io/chunk_writer.h"
+#include "io/file_read.h"
+#include "util/hash.h"
 
 namespace fs = std::filesystem;
 

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "cli/pipeline.h"
-#include "core/results_file.h"
-#include "core/space_source.h"
+#include "io/results_file.h"
+#include "io/space_source.h"
 
 namespace shadowcull::cli {
 

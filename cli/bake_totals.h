@@ -9,7 +9,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/savings.h"
+#include "cli/savings.h"
 #include "core/verdict.h"
 
 namespace shadowcull::cli {

@@ -6,10 +6,10 @@
 #include <vector>
 
 #include "cli/pipeline.h"
+#include "cli/savings.h"
 #include "cli/staged_outputs.h"
-#include "core/format.h"
-#include "core/savings.h"
 #include "gpu/render.h"
+#include "util/format.h"
 
 namespace fs = std::filesystem;
 

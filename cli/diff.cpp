@@ -1,10 +1,10 @@
 #include "cli/diff.h"
 
-#include "core/chunk_writer.h"
 #include "cli/diff_model.h"
 #include "cli/output_guard.h"
-#include "core/file_read.h"
-#include "core/results_file.h"
+#include "io/chunk_writer.h"
+#include "io/file_read.h"
+#include "io/results_file.h"
 
 #include <tinyxml2.h>
 
@@ -23,7 +23,8 @@
 
 #include "cli/pipeline.h"
 #include "core/scene.h"
-#include "core/xml_message.h"
+#include "io/scene_reader.h"
+#include "io/xml_message.h"
 
 namespace shadowcull::cli {
 
@@ -64,7 +65,7 @@ std::string trim(const char* s) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Reading a results JSON file: core/results_file.h reads and checks it (the one reader of
+// Reading a results JSON file: io/results_file.h reads and checks it (the one reader of
 // the format); here it only becomes one side of the comparison.
 
 Vec vecOf(const glm::dvec3& v) { return {v.x, v.y, v.z}; }

@@ -5,8 +5,8 @@
 
 #include "cli/output_guard.h"
 #include "cli/pipeline.h"
-#include "core/format.h"
-#include "core/gltf_document.h"
+#include "io/gltf_document.h"
+#include "util/format.h"
 
 namespace shadowcull::cli {
 

@@ -6,7 +6,7 @@
 #include <atomic>
 #include <initializer_list>
 
-#include "core/stop_request.h"
+#include "util/stop_request.h"
 
 namespace shadowcull::cli {
 

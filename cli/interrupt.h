@@ -3,7 +3,7 @@
 // How a signal is then taken depends on what the process is doing (InterruptMode): before
 // a command is under way, or in a command with nothing to clean up, it ends the process at
 // once with 128 + signal; in a command that stages its outputs, the handler only records
-// the signal (core/stop_request.h) and says on stderr that it is stopping, and the command
+// the signal (util/stop_request.h) and says on stderr that it is stopping, and the command
 // notices it between steps, on its own thread, removes its temporaries there and returns
 // an Interrupted error (exit code 128 + signal, 130 for Ctrl-C). Nothing that is not
 // async-signal-safe runs in the handler.

@@ -13,26 +13,26 @@
 
 #include <CLI/CLI.hpp>
 
-#include "cli/interrupt.h"
-#include "cli/output_guard.h"
-#include "cli/pipeline.h"
-#include "cli/progress_reporter.h"
-#include "core/heap_tuning.h"
 #include "cli/check.h"
 #include "cli/diff.h"
 #include "cli/explain.h"
-#include "cli/merge.h"
-#include "cli/shard.h"
 #include "cli/gltf_commands.h"
-#include "cli/render_command.h"
+#include "cli/interrupt.h"
+#include "cli/merge.h"
+#include "cli/output_guard.h"
+#include "cli/pipeline.h"
 #include "cli/preview_command.h"
+#include "cli/progress_reporter.h"
+#include "cli/render_command.h"
 #include "cli/report.h"
 #include "cli/savings_report.h"
+#include "cli/shard.h"
 #include "cli/sweep.h"
 #include "cli/usage.h"
 #include "core/limits.h"
 #include "gpu/gl_context.h"
 #include "gpu/render.h"
+#include "util/heap_tuning.h"
 
 using namespace shadowcull;
 using namespace shadowcull::cli;

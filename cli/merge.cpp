@@ -7,8 +7,8 @@
 #include "cli/output_guard.h"
 #include "cli/pipeline.h"
 #include "cli/report.h"
-#include "core/chunk_writer.h"
 #include "core/scene.h"
+#include "io/chunk_writer.h"
 
 namespace shadowcull::cli {
 

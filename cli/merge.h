@@ -1,6 +1,6 @@
 // shadowcull merge OUT.json SHARD_RESULTS...: the results files of the shards of one bake
 // (bake --shard K/N --results) joined into the file a single bake of the whole space with
-// the same options writes, byte for byte. Read and written by core/results_file.h only.
+// the same options writes, byte for byte. Read and written by io/results_file.h only.
 #pragma once
 
 #include <ostream>
@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/results_file.h"
+#include "io/results_file.h"
 
 namespace shadowcull::cli {
 

@@ -18,16 +18,16 @@
 #include "cli/report.h"
 #include "cli/resume.h"
 #include "cli/shard.h"
-#include "core/chunk_writer.h"
-#include "core/format.h"
-#include "core/hash.h"
-#include "core/results_file.h"
-#include "core/space_source.h"
-#include "core/stop_request.h"
 #include "core/window.h"
 #include "gpu/baseline.h"
 #include "gpu/confirm_stage.h"
 #include "gpu/gl_context.h"
+#include "io/chunk_writer.h"
+#include "io/results_file.h"
+#include "io/space_source.h"
+#include "util/format.h"
+#include "util/hash.h"
+#include "util/stop_request.h"
 
 namespace fs = std::filesystem;
 

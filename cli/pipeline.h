@@ -10,7 +10,6 @@
 #include <vector>
 
 #include "cli/bake_totals.h"
-#include "core/results_file.h"
 #include "core/scene.h"
 #include "core/stage.h"
 #include "core/verdict.h"
@@ -18,6 +17,8 @@
 #include "geometry/geometry_stage.h"
 #include "gpu/baseline.h"
 #include "gpu/confirm_stage.h"
+#include "io/results_file.h"
+#include "io/space_source.h"
 #include "raycast/raycast_stage.h"
 
 namespace shadowcull::cli {
@@ -210,7 +211,7 @@ Expected<BakeResult> runBake(const BakeOptions& options, const Progress& progres
 
 // Ok, or an Interrupted error once SIGINT or SIGTERM arrived (cli/interrupt.h): the bake
 // checks it between stages and chunks (the scan, the window's loads and the stages' loops
-// check it too: core/stop_request.h) and cleans up on its own thread.
+// check it too: util/stop_request.h) and cleans up on its own thread.
 Status interrupted();
 
 // Effects the window calls for, as the bake simulated them (for the summary and JSON).

@@ -2,7 +2,7 @@
 
 #include <unistd.h>
 
-#include "core/stop_request.h"
+#include "util/stop_request.h"
 
 namespace shadowcull::cli {
 

@@ -5,15 +5,15 @@
 
 
 #include "cli/pipeline.h"
-#include "core/results_file.h"
-#include "core/savings.h"
+#include "cli/savings.h"
+#include "io/results_file.h"
 
 namespace shadowcull::cli {
 
 // The bits of the chunks baked (BakeResult::totals; not those --resume skipped).
 BitCounts countBits(const BakeResult& r);
 
-// The shadow-pass savings of a bake (core/savings.h), per light, for the world and per
+// The shadow-pass savings of a bake (cli/savings.h), per light, for the world and per
 // chunk (in r.chunks order: the bake must have kept its verdicts), from the groups' placed
 // triangles.
 savings::Tally tallyBake(const BakeResult& r);

@@ -12,9 +12,9 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/pipeline.h"
-#include "core/chunk_writer.h"
-#include "core/file_read.h"
-#include "core/hash.h"
+#include "io/chunk_writer.h"
+#include "io/file_read.h"
+#include "util/hash.h"
 
 namespace fs = std::filesystem;
 

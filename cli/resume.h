@@ -12,8 +12,8 @@
 #include <unordered_map>
 
 #include "core/scene.h"
-#include "core/space_source.h"
-#include "core/status.h"
+#include "io/space_source.h"
+#include "util/status.h"
 
 namespace shadowcull::cli {
 

@@ -9,8 +9,8 @@
 #include <cstdio>
 #include <sstream>
 
-#include "cli/savings_model.h"
 #include "cli/html_text.h"
+#include "cli/savings_model.h"
 #include "core/scene.h"
 
 namespace shadowcull::cli::savings_detail {

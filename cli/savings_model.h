@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "core/results_file.h"
-#include "core/savings.h"
+#include "cli/savings.h"
+#include "io/results_file.h"
 
 namespace shadowcull::cli::savings_detail {
 

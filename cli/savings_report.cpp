@@ -11,8 +11,9 @@
 #include "cli/pipeline.h"
 #include "cli/report.h"
 #include "cli/savings_model.h"
-#include "core/chunk_writer.h"
 #include "core/scene.h"
+#include "io/chunk_writer.h"
+#include "io/scene_reader.h"
 
 namespace shadowcull::cli {
 

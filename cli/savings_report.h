@@ -1,8 +1,8 @@
 // `shadowcull report SPACE RESULTS.json [--html FILE]` (issue 14): what a bake's masks
 // remove from each light's shadow pass, in casters (groups) and placed triangles, split
 // into (a) what the engine's own run-time culling already removes and (b) what only this
-// bake removes (core/savings.h), for the world and per chunk, with the biggest single
-// savings and their proofs. The results file is read through core/results_file.h (as
+// bake removes (cli/savings.h), for the world and per chunk, with the biggest single
+// savings and their proofs. The results file is read through io/results_file.h (as
 // `diff` reads it); the triangles are counted in the space, which must be the one baked.
 #pragma once
 
@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "core/results_file.h"
+#include "io/results_file.h"
 
 namespace shadowcull::cli {
 

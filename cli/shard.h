@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "core/scene.h"
-#include "core/space_source.h"
+#include "io/space_source.h"
 
 namespace shadowcull::cli {
 

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <filesystem>
 
-#include "core/chunk_writer.h"
-#include "core/stop_request.h"
+#include "io/chunk_writer.h"
+#include "util/stop_request.h"
 
 namespace fs = std::filesystem;
 

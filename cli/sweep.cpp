@@ -1,7 +1,7 @@
 #include "cli/sweep.h"
 
-#include "core/chunk_writer.h"
 #include "cli/output_guard.h"
+#include "io/chunk_writer.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,7 +12,8 @@
 #include <sstream>
 
 #include "cli/sweep_plot.h"
-#include "core/format.h"
+#include "io/scene_reader.h"
+#include "util/format.h"
 
 namespace shadowcull::cli {
 

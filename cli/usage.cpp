@@ -10,10 +10,10 @@
 #include <oneapi/tbb/version.h>
 #include <tinyxml2.h>
 
-#include "core/format.h"
-#include "core/nearest_name.h"
-#include "core/png_write.h"
 #include "gpu/gl_context.h"
+#include "io/png_write.h"
+#include "util/format.h"
+#include "util/nearest_name.h"
 
 namespace fs = std::filesystem;
 

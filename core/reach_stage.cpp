@@ -7,11 +7,10 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/format.h"
 #include "core/light_reach.h"
-#include "core/savings.h"
 #include "core/stage.h"
-#include "core/stop_request.h"
+#include "util/format.h"
+#include "util/stop_request.h"
 
 namespace shadowcull {
 
@@ -88,7 +87,7 @@ Status ReachStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats& 
                 const Light& L = window.lsLights[size_t(l)];
                 const Aabb& gb = groupBounds[size_t(g)];
                 if (!castsShadow) {
-                    decide(d, Verdict::Culled, "input", savings::kCastsShadowFalse);
+                    decide(d, Verdict::Culled, "input", reasons::kCastsShadowFalse);
                 } else if (gb.empty()) {
                     decide(d, Verdict::Culled, "input", "the group has no triangle with three distinct vertices");
                 } else if (!lightsReach_) {

@@ -8,9 +8,9 @@
 #include <unordered_set>
 #include <vector>
 
-#include "core/status.h"
 #include "core/verdict.h"
 #include "core/window.h"
+#include "util/status.h"
 
 namespace shadowcull {
 
@@ -45,7 +45,7 @@ public:
     // the table then holds only the decisions made before the failure.
     virtual Status run(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats) = 0;
     // The bake is about to free these meshes (it loads chunks as windows need them and drops
-    // them after: core/space_source.h). A cache keyed by a mesh's address must forget them
+    // them after: io/space_source.h). A cache keyed by a mesh's address must forget them
     // now, since a mesh loaded later may get the same address.
     virtual void forgetMeshes(const std::unordered_set<const Mesh*>& meshes) { (void)meshes; }
 };

@@ -15,13 +15,20 @@
 #include <glm/vec3.hpp>
 
 #include "core/scene.h"
-#include "core/status.h"
+#include "util/status.h"
 
 namespace shadowcull {
 
 enum class Verdict : uint8_t { Undecided, Kept, Culled };
 
 const char* verdictName(Verdict v);
+
+namespace reasons {
+// The reason the reach stage gives for a caster the engine never draws into a shadow map.
+// One text, so that the stage and the reports that classify it (cli/savings.h) cannot
+// drift apart.
+inline constexpr char kCastsShadowFalse[] = "castsShadow is false";
+}  // namespace reasons
 
 // A ray that proves a 1: from `wsOrigin` along `wsDirection`, the first opaque surface is
 // the group at `wsP`, and `wsQ` on `receiver` lies behind it by more than the bias and
@@ -84,7 +91,7 @@ struct ObjectVerdicts {
     // for reports that draw the object.
     std::vector<std::array<glm::dvec3, 2>> wsGroupBounds;
     // Placed triangles of each group (degenerate ones too: an engine draws them), for the
-    // shadow-pass savings (core/savings.h).
+    // shadow-pass savings (cli/savings.h).
     std::vector<uint64_t> groupTriangles;
 };
 

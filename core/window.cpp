@@ -7,7 +7,7 @@
 
 #include <tbb/parallel_for_each.h>
 
-#include "core/stop_request.h"
+#include "util/stop_request.h"
 
 namespace shadowcull {
 

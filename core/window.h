@@ -181,7 +181,7 @@ using TerrainMeshes = std::unordered_map<const Heightfield*, std::shared_ptr<con
 // Builds the window around `centre` of the chunks `chunks` (those of them `space` holds),
 // in that order (a plan's grid order: core/window_plan.h). Terrain meshes are made once per
 // heightfield and kept in `terrainMeshes` (owned by the caller, reused across windows).
-// Once a stop is requested (core/stop_request.h) it returns an incomplete window: the
+// Once a stop is requested (util/stop_request.h) it returns an incomplete window: the
 // caller checks stopStatus() before using it.
 BakeWindow buildWindow(const Space& space, ChunkCoord centre, const std::vector<ChunkCoord>& chunks,
                        TerrainMeshes& terrainMeshes);

@@ -30,10 +30,24 @@
 #include <vector>
 
 #include "core/scene.h"
-#include "core/space_source.h"
 #include "core/window.h"
 
 namespace shadowcull {
+
+// One chunk file as the scan read it (io/space_source.h fills them).
+struct ChunkEntry {
+    std::string path;
+    uint64_t contentHash = 0;  // of the bytes the scan read (ChunkFile::contentHash)
+    uint64_t contentWithoutShadowsHash = 0;  // the same bytes without the bake's output (ChunkFile)
+    size_t usableObjects = 0;  // objects not skipped
+    // Hash of what the stages read of it (bake --resume, shards): every object's element,
+    // kind, resource, uuid, flags and placement, and its mesh's or heightfield's content.
+    uint64_t objectsHash = 0;
+    // World-space box of every usable object's triangles (conservative: from the resources'
+    // vertex boxes, placed with a margin); empty when none. Planning windows (core/
+    // window_plan.h) needs only this of the chunks a window does not hold.
+    Aabb wsBounds;
+};
 
 // How far one light's shadows took a window beyond the `neighbours` rectangle.
 struct LightReach {

@@ -5,8 +5,9 @@
 
 #include <string>
 
-#include "core/chunk_writer.h"
 #include "fuzz/fuzz_support.h"
+#include "io/chunk_writer.h"
+#include "io/scene_reader.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const std::string path = writeInputFiles(data, size, {"00000000o.chunk"})[0];

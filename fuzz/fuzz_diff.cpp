@@ -1,5 +1,5 @@
 // Fuzz target: results JSON files as `shadowcull diff` reads them. The reader is
-// core/results_file.h (parseResults), the one reader of the format; the whole command runs
+// io/results_file.h (parseResults), the one reader of the format; the whole command runs
 // (runDiff), with the HTML and JSON reports written too (they format what was read). Each
 // file that parses must also survive the writer: written, parsed again and written again,
 // it gives the same bytes (merge and export will rewrite what they read). Input: old.json,
@@ -10,8 +10,8 @@
 #include <sstream>
 
 #include "cli/diff.h"
-#include "core/results_file.h"
 #include "fuzz/fuzz_support.h"
+#include "io/results_file.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::vector<std::string> parts = splitInput(data, size, 2);

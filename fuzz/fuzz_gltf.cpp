@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "fuzz/fuzz_support.h"
+#include "io/mesh_load.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const bool glb = size >= 4 && std::memcmp(data, "glTF", 4) == 0;

@@ -8,6 +8,7 @@
 
 #include "fuzz/fuzz_support.h"
 #include "gltf/gltf_import.h"
+#include "io/scene_reader.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const bool glb = size >= 4 && std::memcmp(data, "glTF", 4) == 0;

@@ -3,6 +3,7 @@
 // (fuzz_support.h); <visual> picks the mesh.
 
 #include "fuzz/fuzz_support.h"
+#include "io/scene_reader.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const std::string path = writeInputFiles(data, size, {"a.model", "m.obj", "m.mtl", "m.gltf"})[0];

@@ -4,6 +4,7 @@
 // reach the reader.
 
 #include "fuzz/fuzz_support.h"
+#include "io/scene_reader.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     std::vector<std::string> parts = splitInput(data, size, 2);

@@ -23,15 +23,15 @@
 #include <glm/common.hpp>
 #include <tbb/parallel_for.h>
 
-#include "core/float_mode.h"
-#include "core/format.h"
 #include "core/light_reach.h"
 #include "core/mesh_index.h"
-#include "core/stop_request.h"
 #include "geometry/exact_frustum.h"
 #include "geometry/exact_reach.h"
 #include "geometry/receiver_rules.h"
 #include "geometry/shadow_query.h"
+#include "util/float_mode.h"
+#include "util/format.h"
+#include "util/stop_request.h"
 
 namespace shadowcull::geometry {
 
@@ -611,7 +611,7 @@ Status GeometryStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStat
             // A signal: the tasks not begun leave their bits undecided; the stage then stops.
             if (stopRequested()) return;
             // Exact predicates: CGAL's interval filters need gradual underflow, whatever
-            // mode an earlier stage's tasks left TBB in (core/float_mode.h).
+            // mode an earlier stage's tasks left TBB in (util/float_mode.h).
             const FloatModeScope ieeeHere(FloatModeScope::Underflow::Gradual);
             examineGroup(scene, tasks[ti], cv, tally);
         });

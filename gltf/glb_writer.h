@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "core/gltf_document.h"
+#include "io/gltf_document.h"
 
 namespace shadowcull::gltf {
 

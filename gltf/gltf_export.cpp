@@ -19,15 +19,16 @@
 #include <nlohmann/json.hpp>
 #include <tinyxml2.h>
 
-#include "core/chunk_writer.h"
-#include "core/file_read.h"
-#include "core/format.h"
-#include "core/gltf_document.h"
-#include "core/results_file.h"
 #include "core/scene.h"
-#include "core/xml_message.h"
 #include "gltf/glb_writer.h"
 #include "gltf/gltf_import.h"
+#include "io/chunk_writer.h"
+#include "io/file_read.h"
+#include "io/gltf_document.h"
+#include "io/results_file.h"
+#include "io/scene_reader.h"
+#include "io/xml_message.h"
+#include "util/format.h"
 
 namespace shadowcull::gltf {
 
@@ -123,7 +124,7 @@ std::set<size_t> spaceNodes(const std::string& spaceDir) {
     return nodes;
 }
 
-// Through the one atomic writer (core/chunk_writer.h): its temporary is created with O_EXCL
+// Through the one atomic writer (io/chunk_writer.h): its temporary is created with O_EXCL
 // and O_NOFOLLOW (a link planted at a predictable name is never written through), synced,
 // renamed, and removed by the signal handler if the process ends meanwhile.
 void writeAtomically(const std::string& path, const std::string& bytes) {

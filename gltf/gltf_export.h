@@ -10,7 +10,7 @@
 
 #include <string>
 
-#include "core/status.h"
+#include "util/status.h"
 
 namespace shadowcull::gltf {
 

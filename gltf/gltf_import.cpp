@@ -26,13 +26,13 @@
 #include <nlohmann/json.hpp>
 #include <tinyxml2.h>
 
-#include "core/file_read.h"
-#include "core/format.h"
-#include "core/gltf_document.h"
-#include "core/hash.h"
 #include "core/limits.h"
-#include "core/stop_request.h"
 #include "gltf/glb_writer.h"
+#include "io/file_read.h"
+#include "io/gltf_document.h"
+#include "util/format.h"
+#include "util/hash.h"
+#include "util/stop_request.h"
 
 namespace shadowcull::gltf {
 

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "core/scene.h"
-#include "core/status.h"
+#include "util/status.h"
 
 namespace shadowcull::gltf {
 

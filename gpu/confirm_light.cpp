@@ -13,8 +13,8 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/float_mode.h"
 #include "core/light_reach.h"
+#include "util/float_mode.h"
 
 namespace shadowcull::gpu {
 

@@ -19,8 +19,8 @@
 #include "gpu/conservative.h"
 #include "gpu/gl_api.h"
 #include "gpu/light_view.h"
-#include "gpu/selection_tree.h"
 #include "gpu/pixel_cells.h"
+#include "gpu/selection_tree.h"
 
 namespace shadowcull::gpu {
 

@@ -49,10 +49,10 @@
 #include <string>
 #include <tuple>
 
-#include "core/float_mode.h"
-#include "core/format.h"
-#include "core/stop_request.h"
 #include "gpu/confirm_light.h"
+#include "util/float_mode.h"
+#include "util/format.h"
+#include "util/stop_request.h"
 
 namespace shadowcull::gpu {
 

@@ -11,8 +11,8 @@
 #include <GL/glcorearb.h>
 
 #include "core/stage.h"
-#include "core/status.h"
 #include "gpu/gl_context.h"
+#include "util/status.h"
 
 namespace shadowcull::gpu {
 

@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "core/status.h"
 #include "gpu/gl_context.h"
+#include "util/status.h"
 
 namespace shadowcull::gpu::backends {
 

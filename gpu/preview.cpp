@@ -7,12 +7,12 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/format.h"
 #include "gpu/gl_api.h"
 #include "gpu/light_view.h"
 #include "gpu/preview_pixels.h"
 #include "gpu/render_picture.h"
 #include "gpu/window_draw.h"
+#include "util/format.h"
 
 namespace shadowcull::gpu {
 

@@ -25,9 +25,9 @@
 
 #include <glm/vec3.hpp>
 
-#include "core/status.h"
 #include "core/verdict.h"
 #include "core/window.h"
+#include "util/status.h"
 
 namespace shadowcull::gpu {
 

@@ -11,8 +11,8 @@
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
-#include "core/float_mode.h"
 #include "gpu/preview_witness.h"
+#include "util/float_mode.h"
 
 namespace shadowcull::gpu {
 

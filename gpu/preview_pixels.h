@@ -25,11 +25,11 @@
 
 #include <glm/vec3.hpp>
 
-#include "core/bitmap_font.h"
 #include "core/verdict.h"
 #include "gpu/light_view.h"
 #include "gpu/preview.h"
 #include "gpu/window_draw.h"
+#include "util/bitmap_font.h"
 
 namespace shadowcull::gpu {
 

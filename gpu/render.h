@@ -19,9 +19,9 @@
 #include <utility>
 #include <vector>
 
-#include "core/status.h"
 #include "core/verdict.h"
 #include "core/window.h"
+#include "util/status.h"
 
 namespace shadowcull::gpu {
 

@@ -1,6 +1,6 @@
 #include "gpu/render_picture.h"
 
-#include "core/png_write.h"
+#include "io/png_write.h"
 
 #include <algorithm>
 #include <cmath>
@@ -129,7 +129,7 @@ RgbImage composePicture(const RenderedViews& rv, const std::vector<std::string>&
     return img;
 }
 
-// libpng's own stderr lines become the tool's messages (core/png_write.h).
+// libpng's own stderr lines become the tool's messages (io/png_write.h).
 Status writePng(const std::string& path, const RgbImage& image) {
     return writeRgbPng(path, image.width(), image.height(), image.pixels());
 }

@@ -6,10 +6,10 @@
 #include <string>
 #include <vector>
 
-#include "core/bitmap_font.h"
-#include "core/status.h"
 #include "gpu/light_view.h"
 #include "gpu/render.h"
+#include "util/bitmap_font.h"
+#include "util/status.h"
 
 namespace shadowcull::gpu {
 

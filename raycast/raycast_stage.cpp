@@ -38,11 +38,11 @@
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
-#include "core/float_mode.h"
-#include "core/stop_request.h"
 #include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
 #include "raycast/receiver_targets.h"
+#include "util/float_mode.h"
+#include "util/stop_request.h"
 
 namespace shadowcull::raycast {
 

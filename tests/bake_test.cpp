@@ -21,11 +21,11 @@
 
 #include "cli/pipeline.h"
 #include "cli/report.h"
-#include "core/float_mode.h"
 #include "tests/support/bake_lookup.h"
 #include "tests/support/sample_space.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
+#include "util/float_mode.h"
 
 using namespace shadowcull;
 using namespace shadowcull::testing;

@@ -10,8 +10,8 @@
 
 #include "cli/check.h"
 #include "gpu/gl_context.h"
-#include "tests/support/space_builder.h"
 #include "tests/support/gl_available.h"
+#include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 
 using namespace shadowcull;

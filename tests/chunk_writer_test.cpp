@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/chunk_writer.h"
+#include "io/chunk_writer.h"
 #include "tests/test_files.h"
 
 using namespace shadowcull;

@@ -15,9 +15,9 @@
 #include <gtest/gtest.h>
 
 #include "bench/world_gen.h"
-#include "core/results_file.h"
 #include "gpu/gl_api.h"
 #include "gpu/gl_context.h"
+#include "io/results_file.h"
 #include "tests/support/gl_available.h"
 #include "tests/test_files.h"
 

@@ -13,8 +13,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "core/results_file.h"
 #include "gltf/gltf_import.h"
+#include "io/results_file.h"
 #include "tests/support/gltf_scenes.h"
 #include "tests/test_files.h"
 

@@ -4,6 +4,7 @@
 // tree selection changing nothing; the window's edges; the light-view render.
 // Every test that needs GL skips, saying why, where no offscreen context can be made.
 
+#include "io/scene_reader.h"
 #include "tests/support/gpu_scenes.h"
 
 using namespace shadowcull;

@@ -5,6 +5,7 @@
 #include <glm/geometric.hpp>
 
 #include "cli/pipeline.h"
+#include "io/scene_reader.h"
 #include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
 #include "tests/support/bake_lookup.h"

@@ -1,4 +1,4 @@
-// The heap settings every executable applies first (core/heap_tuning.h).
+// The heap settings every executable applies first (util/heap_tuning.h).
 
 #include <chrono>
 #include <cstdint>
@@ -18,7 +18,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/heap_tuning.h"
+#include "util/heap_tuning.h"
 
 namespace shadowcull {
 namespace {

@@ -23,13 +23,14 @@
 #include "cli/pipeline.h"
 #include "cli/progress_reporter.h"
 #include "cli/staged_outputs.h"
-#include "core/space_source.h"
-#include "core/stop_request.h"
 #include "geometry/geometry_stage.h"
+#include "io/scene_reader.h"
+#include "io/space_source.h"
 #include "raycast/raycast_stage.h"
 #include "tests/support/gltf_scenes.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
+#include "util/stop_request.h"
 
 using namespace shadowcull;
 using namespace shadowcull::testing;

@@ -17,8 +17,9 @@
 #include <meshoptimizer.h>
 #include <nlohmann/json.hpp>
 
-#include "core/gltf_document.h"
 #include "core/mesh.h"
+#include "io/gltf_document.h"
+#include "io/mesh_load.h"
 #include "tests/support/gltf_builder.h"
 #include "tests/test_files.h"
 

@@ -12,8 +12,9 @@
 #include <glm/vec3.hpp>
 #include <nlohmann/json.hpp>
 
-#include "core/gltf_document.h"
 #include "core/mesh.h"
+#include "io/gltf_document.h"
+#include "io/mesh_load.h"
 #include "tests/support/gltf_builder.h"
 #include "tests/test_files.h"
 

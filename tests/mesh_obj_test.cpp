@@ -11,8 +11,9 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/file_read.h"
 #include "core/mesh.h"
+#include "io/file_read.h"
+#include "io/mesh_load.h"
 #include "tests/test_files.h"
 
 using namespace shadowcull;

@@ -11,7 +11,7 @@
 
 #include <gtest/gtest.h>
 
-#include "core/png_write.h"
+#include "io/png_write.h"
 #include "tests/support/gl_available.h"
 #include "tests/support/sample_space.h"
 #include "tests/support/space_builder.h"

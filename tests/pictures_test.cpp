@@ -17,12 +17,12 @@
 #include "cli/pipeline.h"
 #include "cli/report.h"
 #include "cli/sweep_plot.h"
-#include "core/bitmap_font.h"
-#include "core/results_file.h"
 #include "gpu/render.h"
+#include "io/results_file.h"
 #include "tests/support/gl_available.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
+#include "util/bitmap_font.h"
 
 using namespace shadowcull;
 using namespace shadowcull::testing;

@@ -12,6 +12,7 @@
 
 #include "cli/pipeline.h"
 #include "core/window.h"
+#include "io/scene_reader.h"
 #include "raycast/receiver_targets.h"
 #include "tests/support/bake_lookup.h"
 #include "tests/support/space_builder.h"

@@ -36,6 +36,7 @@
 #include "core/stage.h"
 #include "core/window.h"
 #include "geometry/geometry_stage.h"
+#include "io/scene_reader.h"
 #include "tests/reference/exact_lp.h"
 #include "tests/reference/exact_reference.h"
 #include "tests/support/bake_lookup.h"

@@ -1,4 +1,4 @@
-// core/results_file.h: the one model, reader and writer of the results JSON. The writer
+// io/results_file.h: the one model, reader and writer of the results JSON. The writer
 // must give the bytes `bake --results` writes (merge and export will rewrite what they
 // read, and the determinism tests compare files byte for byte); the reader must refuse what
 // is not a results file with the file, line or JSON path, as `shadowcull diff` always did.
@@ -11,7 +11,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "core/results_file.h"
+#include "io/results_file.h"
 #include "tests/test_files.h"
 
 using namespace shadowcull;

@@ -9,9 +9,9 @@
 
 #include "cli/pipeline.h"
 #include "cli/report.h"
+#include "cli/savings.h"
 #include "cli/savings_report.h"
-#include "core/results_file.h"
-#include "core/savings.h"
+#include "io/results_file.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 

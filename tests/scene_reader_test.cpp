@@ -8,8 +8,9 @@
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
-#include "core/chunk_writer.h"
 #include "core/scene.h"
+#include "io/chunk_writer.h"
+#include "io/scene_reader.h"
 #include "tests/test_files.h"
 
 using namespace shadowcull;

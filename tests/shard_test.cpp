@@ -8,8 +8,8 @@
 
 #include "bench/world_gen.h"
 #include "cli/shard.h"
-#include "core/results_file.h"
 #include "core/scene.h"
+#include "io/results_file.h"
 #include "tests/test_files.h"
 
 using namespace shadowcull;

@@ -14,6 +14,7 @@
 #include "cli/pipeline.h"
 #include "core/stage.h"
 #include "core/window.h"
+#include "io/scene_reader.h"
 #include "raycast/raycast_stage.h"
 #include "tests/test_files.h"
 

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/mesh.h"
+#include "io/mesh_load.h"
 #include "tests/test_files.h"
 
 namespace shadowcull::testing::gltf {

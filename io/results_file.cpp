@@ -1,4 +1,4 @@
-#include "core/results_file.h"
+#include "io/results_file.h"
 
 #include <algorithm>
 #include <limits>
@@ -6,7 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/file_read.h"
+#include "io/file_read.h"
 
 namespace shadowcull::results {
 

@@ -1,4 +1,4 @@
-#include "core/stop_request.h"
+#include "util/stop_request.h"
 
 #include <unistd.h>
 

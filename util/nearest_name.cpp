@@ -1,4 +1,4 @@
-#include "core/nearest_name.h"
+#include "util/nearest_name.h"
 
 #include <algorithm>
 #include <cctype>

@@ -15,7 +15,8 @@
 #include <string_view>
 #include <vector>
 
-#include "core/results_file.h"
+#include "core/verdict.h"
+#include "io/results_file.h"
 
 namespace shadowcull::results {
 // Work added and taken away (found by argument-dependent lookup wherever records are used).
@@ -29,9 +30,9 @@ using results::LightSavingsRecord;
 using results::ResultsFile;
 using results::WorkRecord;
 
-// The reason the reach stage gives for a caster the engine never draws into a shadow map.
-// One text, so that the stage and the classification below cannot drift apart.
-inline constexpr char kCastsShadowFalse[] = "castsShadow is false";
+// The reach stage's reason for a caster the engine never draws into a shadow map
+// (core/verdict.h), which the classification below counts as the engine's cull.
+using reasons::kCastsShadowFalse;
 
 enum class Why : uint8_t {
     EngineCulls,  // (a)

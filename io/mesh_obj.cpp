@@ -16,10 +16,11 @@
 #include <string_view>
 #include <system_error>
 
-#include "core/file_read.h"
-#include "core/format.h"
 #include "core/limits.h"
 #include "core/mesh.h"
+#include "io/file_read.h"
+#include "io/mesh_load.h"
+#include "util/format.h"
 
 namespace fs = std::filesystem;
 

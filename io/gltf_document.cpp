@@ -1,5 +1,5 @@
 // glTF 2.0 documents: container (.gltf/.glb), buffers, accessors, node forest and mesh
-// decoding (core/gltf_document.h). Only what shadow culling needs is decoded; every range
+// decoding (io/gltf_document.h). Only what shadow culling needs is decoded; every range
 // is checked against the real data so that a truncated or inconsistent file is an error
 // naming the file and the JSON path, never a wrong mesh.
 //
@@ -10,7 +10,7 @@
 // everything around them (ranges, counts, strides, modes) is checked here first, since
 // both libraries assert or trust their arguments.
 
-#include "core/gltf_document.h"
+#include "io/gltf_document.h"
 
 #include <algorithm>
 #include <cctype>
@@ -26,10 +26,10 @@
 #include <glm/mat3x3.hpp>
 #include <nlohmann/json.hpp>
 
-#include "core/file_read.h"
-#include "core/gltf_codecs.h"
-#include "core/format.h"
 #include "core/limits.h"
+#include "io/file_read.h"
+#include "io/gltf_codecs.h"
+#include "util/format.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -56,7 +56,7 @@ struct GltfFailure {
     throw GltfFailure{kind, line, std::move(message)};
 }
 
-// A regular file only (core/file_read.h: a FIFO or directory is refused, never waited on).
+// A regular file only (io/file_read.h: a FIFO or directory is refused, never waited on).
 void readFile(const fs::path& path, const std::string& what, std::vector<uint8_t>& out) {
     Expected<std::string> text = readRegularFile(path.string(), what);
     if (!text) fail(what + " '" + path.string() + "': " + text.error().message, text.error().kind);

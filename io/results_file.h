@@ -13,7 +13,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "core/status.h"
+#include "util/status.h"
 
 namespace shadowcull::results {
 
@@ -69,7 +69,7 @@ struct WorkRecord {
     uint64_t casters = 0, triangles = 0;
 };
 
-// What the masks remove from one light's shadow pass (core/savings.h computes it; "savings"
+// What the masks remove from one light's shadow pass (cli/savings.h computes it; "savings"
 // in the file): every caster group of the baked chunks (`all`), those the engine's own
 // run-time culling already skips (`engineCulls`: castsShadow false, beyond the range,
 // outside the cone), those only this bake removes (`bakeCulls`, by deciding stage in
@@ -106,7 +106,7 @@ struct Summary {
     uint64_t undecided = 0;                // 1 because nobody could decide
     std::map<std::string, uint64_t> culledBy;  // stage -> bits proved 0
     // Per light, over every chunk (left out by older files, and not derived for a file
-    // without a "summary": core/savings.h computes it from the groups' triangles).
+    // without a "summary": cli/savings.h computes it from the groups' triangles).
     std::vector<LightSavingsRecord> savings;
 
     // Adds the bits of one more chunk (the counts above; not `savings`).
@@ -142,7 +142,7 @@ struct ResultsFile {
 // "summary" (written by hand): the counts are derived data, never guessed.
 Summary summarize(const std::vector<ChunkRecord>& chunks);
 
-// Reads the file at `path` (a regular file only: core/file_read.h) and parses it.
+// Reads the file at `path` (a regular file only: io/file_read.h) and parses it.
 Expected<ResultsFile> readResultsFile(const std::string& path);
 
 // Parses a results file's text; `path` is only used in messages. Errors are BadInput and

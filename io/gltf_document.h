@@ -1,7 +1,7 @@
 // A glTF 2.0 document (.gltf with external or data: URI buffers, or binary .glb), read
 // only as far as shadow culling needs: the node forest, node transforms, meshes decoded to
 // triangles with their two material flags, and the JSON itself for what callers read on
-// their own (KHR_lights_punctual, extras). Used by the mesh loader (core/mesh_gltf.cpp:
+// their own (KHR_lights_punctual, extras). Used by the mesh loader (io/mesh_gltf.cpp:
 // a whole file as one mesh) and by `shadowcull import` (gltf/: one model per node).
 //
 // Every range is checked against the real data, so a truncated or inconsistent file is an
@@ -22,7 +22,7 @@
 
 #include "core/mesh.h"
 #include "core/scene.h"
-#include "core/status.h"
+#include "util/status.h"
 
 namespace shadowcull {
 

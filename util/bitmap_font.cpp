@@ -1,4 +1,4 @@
-#include "core/bitmap_font.h"
+#include "util/bitmap_font.h"
 
 #include <algorithm>
 #include <cmath>

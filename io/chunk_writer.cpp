@@ -3,7 +3,7 @@
 // insertion point) change. A DOM round trip (tinyxml2) would re-serialise the whole file
 // and lose comments' layout, quoting, CRLF endings and the like, which users diff.
 
-#include "core/chunk_writer.h"
+#include "io/chunk_writer.h"
 
 #include <dirent.h>
 #include <fcntl.h>
@@ -17,7 +17,7 @@
 #include <filesystem>
 #include <vector>
 
-#include "core/stop_request.h"
+#include "util/stop_request.h"
 
 namespace shadowcull {
 

@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "core/mesh.h"
+#include "io/mesh_load.h"
 
 namespace shadowcull {
 

@@ -7,7 +7,7 @@
 
 #include <atomic>
 
-#include "core/status.h"
+#include "util/status.h"
 
 namespace shadowcull {
 
@@ -22,7 +22,7 @@ void requestStop(int signal);
 // caller returns it as it is, and whoever removes the temporaries says so.
 Status stopStatus();
 
-// The temporary a one-file atomic write has in hand (writeFileAtomic, core/chunk_writer.h):
+// The temporary a one-file atomic write has in hand (writeFileAtomic, io/chunk_writer.h):
 // for the commands that end at once on a signal (diff, merge, report, sweep's files), whose
 // handler removes it before the process ends, so that no `.NAME.shadowcull-tmp` is left. One
 // at a time: while one is held, holdTemporary() by another thread returns false and that

@@ -1,4 +1,4 @@
-#include "core/gltf_codecs.h"
+#include "io/gltf_codecs.h"
 
 #include <algorithm>
 #include <cctype>

@@ -19,8 +19,10 @@
 #include <glm/vec3.hpp>
 
 #include "core/scene.h"
-#include "core/status.h"
 #include "core/window.h"
+#include "core/window_plan.h"
+#include "io/scene_reader.h"
+#include "util/status.h"
 
 namespace shadowcull {
 
@@ -42,20 +44,6 @@ struct ResourceSummary {
     std::vector<std::string> sourceFiles;  // every file read to build it
 };
 
-// One chunk file as the scan read it.
-struct ChunkEntry {
-    std::string path;
-    uint64_t contentHash = 0;  // of the bytes the scan read (ChunkFile::contentHash)
-    uint64_t contentWithoutShadowsHash = 0;  // the same bytes without the bake's output (ChunkFile)
-    size_t usableObjects = 0;  // objects not skipped
-    // Hash of what the stages read of it (bake --resume, shards): every object's element,
-    // kind, resource, uuid, flags and placement, and its mesh's or heightfield's content.
-    uint64_t objectsHash = 0;
-    // World-space box of every usable object's triangles (conservative: from the resources'
-    // vertex boxes, placed with a margin); empty when none. Planning windows (core/
-    // window_plan.h) needs only this of the chunks a window does not hold.
-    Aabb wsBounds;
-};
 
 // Called by the scan before the first chunk file (0 of `total`) and after each one.
 using ScanProgress = std::function<void(size_t scanned, size_t total)>;
@@ -65,7 +53,7 @@ public:
     // Reads space.xml, lists the chunk files and scans every one of them (or those of `only`
     // and their neighbours). Errors are loadSpace's: a malformed chunk file stops the scan
     // (the first such file in file-name order, as loadSpace reads them). A stop request
-    // (core/stop_request.h) stops it between chunk files with an Interrupted error.
+    // (util/stop_request.h) stops it between chunk files with an Interrupted error.
     static Expected<SpaceSource> scan(const std::string& spaceDir, const std::string& resourceRootOverride,
                                       const std::vector<ChunkCoord>* only = nullptr, const ScanProgress& progress = {});
 
@@ -86,7 +74,7 @@ public:
     // edited since is never written by the bake (its text no longer has that hash). A
     // resource that no longer loads, or loads different content, is an Io error: the scan's
     // verdict on it would no longer hold. `lateDiagnostics` gets the warnings about objects
-    // an edit since the scan added. A stop request (core/stop_request.h) is an Interrupted
+    // an edit since the scan added. A stop request (util/stop_request.h) is an Interrupted
     // error before anything is read.
     Status load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics);
     // Drops chunk `c` from `space.chunks`, then the meshes and heightfields no loaded chunk

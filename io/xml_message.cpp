@@ -1,4 +1,4 @@
-#include "core/xml_message.h"
+#include "io/xml_message.h"
 
 #include <tinyxml2.h>
 

@@ -1,4 +1,4 @@
-#include "core/png_write.h"
+#include "io/png_write.h"
 
 #include <cerrno>
 #include <csetjmp>
@@ -6,7 +6,7 @@
 
 #include <png.h>
 
-#include "core/file_read.h"
+#include "io/file_read.h"
 
 namespace shadowcull {
 

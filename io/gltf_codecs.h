@@ -1,4 +1,4 @@
-// Byte-level decoding for glTF (core/gltf_document.cpp): little-endian reads, accessor
+// Byte-level decoding for glTF (io/gltf_document.cpp): little-endian reads, accessor
 // components (with KHR_mesh_quantization's normalisation), base64 and percent-encoding,
 // and the two compression libraries (libmeshoptimizer for EXT_meshopt_compression,
 // libdraco for KHR_draco_mesh_compression). The document layer checks every size and
@@ -13,7 +13,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "core/status.h"
+#include "util/status.h"
 
 namespace shadowcull::gltf_codecs {
 

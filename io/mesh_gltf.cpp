@@ -1,6 +1,6 @@
 // A glTF 2.0 file as one mesh (a model resource that names a .gltf/.glb): every node of
 // the default scene that draws a mesh contributes its primitives, placed by the composed
-// node transforms. Decoding and validation live in core/gltf_document.cpp.
+// node transforms. Decoding and validation live in io/gltf_document.cpp.
 
 #include <algorithm>
 #include <cmath>
@@ -8,10 +8,11 @@
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
 
-#include "core/format.h"
-#include "core/gltf_document.h"
 #include "core/limits.h"
 #include "core/mesh.h"
+#include "io/gltf_document.h"
+#include "io/mesh_load.h"
+#include "util/format.h"
 
 namespace shadowcull {
 

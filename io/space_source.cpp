@@ -1,6 +1,6 @@
-// The space scan and lazy chunk loading (core/space_source.h), and loadSpace on top of them.
+// The space scan and lazy chunk loading (io/space_source.h), and loadSpace on top of them.
 
-#include "core/space_source.h"
+#include "io/space_source.h"
 
 #include <algorithm>
 #include <chrono>
@@ -15,11 +15,12 @@
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
 
-#include "core/format.h"
-#include "core/hash.h"
 #include "core/limits.h"
-#include "core/stop_request.h"
 #include "core/window_plan.h"
+#include "io/scene_reader.h"
+#include "util/format.h"
+#include "util/hash.h"
+#include "util/stop_request.h"
 
 namespace fs = std::filesystem;
 

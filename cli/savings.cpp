@@ -1,4 +1,4 @@
-#include "core/savings.h"
+#include "cli/savings.h"
 
 namespace shadowcull::results {
 

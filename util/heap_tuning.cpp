@@ -1,6 +1,6 @@
-// The heap of a long bake (core/heap_tuning.h).
+// The heap of a long bake (util/heap_tuning.h).
 
-#include "core/heap_tuning.h"
+#include "util/heap_tuning.h"
 
 #include <algorithm>
 #include <atomic>
