@@ -70,14 +70,7 @@ int runPreview(const PreviewOptions& options, std::ostream& out, std::ostream& e
     rq.timingRepeats = options.repeats;
     StagedOutputs picture;  // renamed into place below: a signal or an error leaves no partial PNG
     Expected<gpu::PreviewReport> r = gpu::renderShadowPreview(bake.window, bake.verdicts, rq, picture.stage(options.outPath));
-    if (!r) {
-        err << "shadowcull: error: " << r.error().what() << "\n";
-        return exitCodeFor(r.error().kind);
-    }
-    if (Status s = picture.commit(); !s) {
-        err << "shadowcull: error: " << s.error().what() << "; " << options.outPath << " was not written\n";
-        return exitCodeFor(s.error().kind);
-    }
+    if (int code = finishPicture(r.status(), picture, options.outPath, err); code != kExitOk) return code;
     const Light& L = lights[size_t(rq.light)];
     out << "wrote " << options.outPath << " (" << r->pictureWidth << " x " << r->pictureHeight << " px): light "
         << options.light << " '" << L.name << "' over " << chunkFileName(coord) << ", masks from a bake of the chunk (not written)\n";

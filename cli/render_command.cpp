@@ -42,6 +42,18 @@ int bakeChunkForLight(const BakeOptions& options, const std::string& chunk, int 
     return kExitOk;
 }
 
+int finishPicture(const Status& rendered, StagedOutputs& picture, const std::string& path, std::ostream& err) {
+    if (!rendered) {
+        err << "shadowcull: error: " << rendered.error().what() << "\n";
+        return exitCodeFor(rendered.error().kind);
+    }
+    if (Status s = picture.commit(); !s) {
+        err << "shadowcull: error: " << s.error().what() << "; " << path << " was not written\n";
+        return exitCodeFor(s.error().kind);
+    }
+    return kExitOk;
+}
+
 int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err) {
     ChunkBake bake;
     ChunkCoord coord;
@@ -53,14 +65,7 @@ int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err
     rq.colouredBy = options.bake.gpuBaseline ? "the original GPU method's verdicts" : "analytic verdicts";
     StagedOutputs picture;  // renamed into place below: a signal or an error leaves no partial PNG
     Expected<gpu::RenderReport> r = gpu::renderLightView(bake.window, bake.verdicts, rq, picture.stage(options.outPath));
-    if (!r) {
-        err << "shadowcull: error: " << r.error().what() << "\n";
-        return exitCodeFor(r.error().kind);
-    }
-    if (Status s = picture.commit(); !s) {
-        err << "shadowcull: error: " << s.error().what() << "; " << options.outPath << " was not written\n";
-        return exitCodeFor(s.error().kind);
-    }
+    if (int code = finishPicture(r.status(), picture, options.outPath, err); code != kExitOk) return code;
     out << "wrote " << options.outPath << " (" << r->width << " x " << r->height << " px): light " << options.light
         << " '" << bake.window.lsLights[size_t(rq.light)].name << "' over " << chunkFileName(coord) << ", groups "
         << r->culled << " culled, " << r->kept << " kept, " << r->undecided << " undecided";

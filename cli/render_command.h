@@ -7,6 +7,7 @@
 #include <string>
 
 #include "cli/pipeline.h"
+#include "cli/staged_outputs.h"
 
 namespace shadowcull::cli {
 
@@ -18,6 +19,11 @@ struct RenderOptions {
 };
 
 int runRender(const RenderOptions& options, std::ostream& out, std::ostream& err);
+
+// A rendered picture's end, for render and preview: prints the rendering's error, or moves
+// the staged picture into place (a failure leaves no partial file and names `path`).
+// kExitOk when the picture is in place, else the exit code of the error.
+int finishPicture(const Status& rendered, StagedOutputs& picture, const std::string& path, std::ostream& err);
 
 // What `render` and `preview` share: parses the chunk name, bakes it (dry run), refuses an
 // output that is one of the bake's inputs and a light the space does not have (1-based),
