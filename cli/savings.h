@@ -1,5 +1,5 @@
 // What a bake's masks remove from each light's shadow pass, in the engine's units: casters
-// (primitive groups, one draw each) and their placed triangles, split by why (issue 14):
+// (primitive groups, one draw each) and their placed triangles, split by why:
 //   (a) engineCulls: what the engine's own run-time culling already skips (castsShadow
 //       false, the group beyond a point or spot light's range, outside a spot's cone: the
 //       reach stage, core/reach_stage.cpp with core/light_reach.h, decides exactly these);

@@ -1,4 +1,4 @@
-// `shadowcull report SPACE RESULTS.json [--html FILE]` (issue 14): what a bake's masks
+// `shadowcull report SPACE RESULTS.json [--html FILE]`: what a bake's masks
 // remove from each light's shadow pass, in casters (groups) and placed triangles, split
 // into (a) what the engine's own run-time culling already removes and (b) what only this
 // bake removes (cli/savings.h), for the world and per chunk, with the biggest single

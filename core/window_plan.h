@@ -1,4 +1,4 @@
-// Which chunks a bake window holds (issue 33). Receivers are every surface of the space
+// Which chunks a bake window holds. Receivers are every surface of the space
 // (../shared/spec/semantics.md): a shadow that leaves the `neighbours` rectangle around the
 // baked chunk still lands, and the engine draws it. So the analytic bake's window is the
 // baked chunk and every chunk that holds a receiver its shadows can reach or an occluder

@@ -81,7 +81,7 @@ public:
     // in the exact kernel, occluders included): the reference the tests compare the fast
     // path with.
     bool reachesExactly(const Triangle& receiver, double beta, const OccluderSource* occluders = nullptr) const;
-    // The terrain rule, exactly (issue 19): true when some point of `receiver` lies in the
+    // The terrain rule, exactly: true when some point of `receiver` lies in the
     // frustum (as reaches()) and is not deeper than `tolerance` (metres) under the ground,
     // that is, lies in the vertical prism of one of the `ground` triangles (window-local,
     // any winding, none vertical) and not more than `tolerance` below its plane, or over

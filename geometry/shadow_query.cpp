@@ -249,8 +249,9 @@ Aabb shadowBox(const glm::dvec3* pts, int count, const Light& L, const Aabb& lim
         // parameter f_a(p), affine in p; exit is concave, so its largest value over the hull
         // may lie inside it, not at a point given (a terrain triangle larger than the window:
         // the column through its middle reaches further than those through its corners; a
-        // false cull the exact reference found, issue 34). Bounded by min over axes of the
-        // largest f_a over the points (each f_a affine: its maximum is at a point).
+        // false cull the exact reference found: ExactReference.LongRunFindingsStayFixed).
+        // Bounded by min over axes of the largest f_a over the points (each f_a affine: its
+        // maximum is at a point).
         const glm::dvec3& d = L.direction;
         double sMax = std::numeric_limits<double>::infinity();
         for (int a = 0; a < 3; ++a) {

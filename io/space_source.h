@@ -1,5 +1,5 @@
 // Reading a space chunk by chunk, so that a bake's memory follows its window and not the
-// world (issue 16). A bake first scans every chunk file once, in grid order: it parses the
+// world. A bake first scans every chunk file once, in grid order: it parses the
 // file and loads each resource the first time an object names it, learns what loadSpace
 // would have said (the warnings, in loadSpace's order; the objects that are skipped; the
 // files read), and keeps only a summary per chunk and per resource. It then loads a chunk

@@ -73,16 +73,14 @@ public:
     }
 
     // Dense prototypes are built compact (Embree's RTC_SCENE_FLAG_COMPACT: the leaves hold
-    // vertex indices, not copies), measured on a 180,000-triangle scan on this project's
-    // CI machine: the build 40 % faster (74 -> 42 ms warm, 103 -> 65 ms on fresh memory,
-    // one thread) and 27 bytes a triangle smaller, each closest-hit ray through it 17 %
-    // slower (+39 ns). A dense mesh's build is most of a first window's ray tracing, and a
-    // bake of a few windows traces far fewer rays through it than its triangles; a long
-    // bake traces more, so once the rays traced since the build reach kFullAfterRays per
-    // triangle (as if each went through it: the extra time then bounded by about twice the
-    // build time saved), the prototype is built again in full, for the rest of the bake.
-    // Verdicts and evidence do not depend on it (the same triangles, the same robust
-    // intersection): compared whole on worlds D, R and data/sample.
+    // vertex indices, not copies): on a 180,000-triangle scan the build is about 40 % faster
+    // and 27 bytes a triangle smaller, each closest-hit ray through it about 17 % slower. A
+    // dense mesh's build is most of a first window's ray tracing, and a bake of a few
+    // windows traces far fewer rays through it than its triangles; a long bake traces more,
+    // so once the rays traced since the build reach kFullAfterRays per triangle (as if each
+    // went through it: the extra time then bounded by about twice the build time saved),
+    // the prototype is built again in full, for the rest of the bake. Verdicts and evidence
+    // do not depend on it (the same triangles, the same robust intersection).
     static constexpr size_t kCompactFrom = size_t(1) << 16;  // triangles
     static constexpr uint64_t kFullAfterRays = 8;            // per triangle
     // Releases the prototypes of `meshes` (about to be freed).

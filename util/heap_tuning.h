@@ -6,8 +6,8 @@
 // its top and grows 256 MiB at a time (address space; pages are touched only when used).
 // Setting any of these turns off glibc's sliding mmap threshold, so it is set too: left at
 // 128 KiB, every large per-window buffer (the GPU stage's pieces, the geometry stage's
-// tables, a dense mesh's trees) was a fresh mmap faulted in page by page, 19 % of a
-// dense-mesh bake's time (world D: 4.3 s -> 3.7 s; docs/performance.md). 32 MiB is the
+// tables, a dense mesh's trees) was a fresh mmap faulted in page by page, about a fifth of
+// a dense-mesh bake's time. 32 MiB is the
 // largest glibc accepts on 64-bit; buffers above it are rare and large enough to pay for
 // their own mapping.
 //
