@@ -194,13 +194,14 @@ struct BakeFiles::Impl {
 
     // Renames one staged chunk unless its source changed since it was read (the check and
     // the rename are microseconds apart; the lock keeps other bakes out of that window).
-    Status commit(const StagedChunk& s) {
+    // `syncDirectory` Later: the caller syncs the directories of every committed target.
+    Status commit(const StagedChunk& s, Sync syncDirectory = Sync::Now) {
         if (std::string why = changedSince(s.source, s.sourceHash); !why.empty()) {
             fs::remove(s.temp);
             result.diagnostics.push_back({s.source, 0, why});
             return Status::ok();
         }
-        if (Status st = commitStagedFile(s.temp, s.target); !st) return st;
+        if (Status st = commitStagedFile(s.temp, s.target, syncDirectory); !st) return st;
         committed.push_back(s.name);
         ++result.chunksWritten;
         return Status::ok();
@@ -308,8 +309,9 @@ Status BakeFiles::write(const ChunkFile& cf, const std::string& chunkName, const
     }
     Expected<std::string> rewritten = rewriteChunkShadows(*text, cf.path, shadowWrites(cv));
     if (!rewritten) return rewritten.error();
-    // Complete and synced before any target is replaced.
-    Expected<std::string> temp = stageFile(target, *rewritten, !im.opt.forceWrite);
+    // Complete and synced before any target is replaced: now in long-bake mode (committed
+    // at once), else all together before the first rename (BakeFiles::commit).
+    Expected<std::string> temp = stageFile(target, *rewritten, !im.opt.forceWrite, resuming() ? Sync::Now : Sync::Later);
     if (!temp) return temp.error();
     StagedChunk sc{chunkName, cf.path, cf.contentHash, *temp, target};
     if (!resuming()) {
@@ -342,13 +344,22 @@ Status BakeFiles::finishResults() {
 
 Status BakeFiles::commit() {
     Impl& im = *impl_;
+    // Every staged byte durable first (one syncfs per file system, not an fsync per file),
+    // then the renames, then each directory synced once: a crash still leaves each chunk
+    // file as it was or wholly rewritten.
+    std::vector<std::string> temps, targets;
+    for (const StagedChunk& sc : im.staged) temps.push_back(sc.temp);
+    if (Status s = syncFileSystems(temps); !s) return s;
     for (size_t k = 0; k < im.staged.size(); ++k) {
-        if (Status s = im.commit(im.staged[k]); !s) {
+        if (Status s = im.commit(im.staged[k], Sync::Later); !s) {
+            (void)syncDirectories(targets);  // what was renamed stays renamed: make it durable
             im.staged.erase(im.staged.begin(), im.staged.begin() + std::ptrdiff_t(k + 1));
             return s;
         }
+        targets.push_back(im.staged[k].target);
     }
     im.staged.clear();
+    if (Status s = syncDirectories(targets); !s) return s;
     if (wantResults()) {
         // Refused chunks (edited during the commit) were added to the diagnostics after the
         // results were finished: write the end again so the file lists every warning.

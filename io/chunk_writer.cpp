@@ -478,24 +478,23 @@ void StagedFile::discard() {
     temp_.clear();
 }
 
-Expected<std::string> stageFile(const std::string& path, const std::string& contents, bool keepOwner) {
+Expected<std::string> stageFile(const std::string& path, const std::string& contents, bool keepOwner, Sync sync) {
     Expected<StagedFile> f = StagedFile::open(path, keepOwner);
     if (!f) return f.error();
     if (Status s = f->append(contents); !s) return s.error();
-    if (Status s = f->sync(); !s) return s.error();
+    if (sync == Sync::Now)
+        if (Status s = f->sync(); !s) return s.error();
     // Closed and handed over: the caller commits or removes it.
     std::string temp = tempPathFor(path);
     if (Status s = f->closeKeeping(); !s) return s.error();
     return temp;
 }
 
-Status commitStagedFile(const std::string& staged, const std::string& path) {
-    if (::rename(staged.c_str(), path.c_str()) != 0) {
-        Status s = ioError(path, "cannot replace the file");
-        ::unlink(staged.c_str());
-        return s;
-    }
-    // Make the rename itself durable. Some file systems cannot sync directories (EINVAL).
+namespace {
+
+// Makes the renames into `path`'s directory durable. Some file systems cannot sync
+// directories (EINVAL).
+Status syncDirectoryOf(const std::string& path) {
     int dfd = ::open(parentDir(path).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     if (dfd < 0) return ioError(path, "file replaced, but cannot open its directory to sync it");
     int synced = ::fsync(dfd);
@@ -503,6 +502,44 @@ Status commitStagedFile(const std::string& staged, const std::string& path) {
                                               : Status::ok();
     ::close(dfd);
     return s;
+}
+
+}  // namespace
+
+Status commitStagedFile(const std::string& staged, const std::string& path, Sync syncDirectory) {
+    if (::rename(staged.c_str(), path.c_str()) != 0) {
+        Status s = ioError(path, "cannot replace the file");
+        ::unlink(staged.c_str());
+        return s;
+    }
+    return syncDirectory == Sync::Now ? syncDirectoryOf(path) : Status::ok();
+}
+
+Status syncFileSystems(const std::vector<std::string>& paths) {
+    std::vector<dev_t> done;
+    for (const std::string& path : paths) {
+        struct stat st {};
+        if (::stat(path.c_str(), &st) != 0) return ioError(path, "cannot sync the file");
+        if (std::find(done.begin(), done.end(), st.st_dev) != done.end()) continue;
+        int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
+        if (fd < 0) return ioError(path, "cannot open the file to sync it");
+        const int synced = ::syncfs(fd);
+        ::close(fd);
+        if (synced != 0) return ioError(path, "syncing its file system failed");
+        done.push_back(st.st_dev);
+    }
+    return Status::ok();
+}
+
+Status syncDirectories(const std::vector<std::string>& paths) {
+    std::vector<std::string> done;
+    for (const std::string& path : paths) {
+        const std::string dir = parentDir(path);
+        if (std::find(done.begin(), done.end(), dir) != done.end()) continue;
+        if (Status s = syncDirectoryOf(path); !s) return s;
+        done.push_back(dir);
+    }
+    return Status::ok();
 }
 
 Status writeFileAtomic(const std::string& path, const std::string& contents) {

@@ -56,8 +56,21 @@ Status writeFileAtomic(const std::string& path, const std::string& contents);
 // and returns that name; commitStagedFile renames it over `path` and syncs the directory
 // (on failure the staged file is removed, `path` untouched). With `keepOwner`, an owner or
 // group that cannot be kept is an Io error; without, the replacement is this user's.
-Expected<std::string> stageFile(const std::string& path, const std::string& contents, bool keepOwner = true);
-Status commitStagedFile(const std::string& staged, const std::string& path);
+//
+// For many files at once (a bake's chunk files), the syncs can be batched: stage each with
+// `Sync::Later`, make them durable together with syncFileSystems (one syncfs per file
+// system instead of an fsync per file), rename each with `Sync::Later`, then syncDirectories
+// once. The guarantee is the same: no target is replaced before every staged byte is on
+// disk, and a crash leaves each target either as it was or wholly the new text.
+enum class Sync { Now, Later };
+Expected<std::string> stageFile(const std::string& path, const std::string& contents, bool keepOwner = true,
+                                Sync sync = Sync::Now);
+Status commitStagedFile(const std::string& staged, const std::string& path, Sync syncDirectory = Sync::Now);
+// Makes every file written so far on the file systems holding `paths` durable (syncfs, once
+// per file system); Io error naming the path when the kernel reports a failed writeback.
+Status syncFileSystems(const std::vector<std::string>& paths);
+// fsync of each distinct directory holding one of `paths` (the renames into it durable).
+Status syncDirectories(const std::vector<std::string>& paths);
 
 // stageFile in pieces, for an output too large to hold (bake --results streams one chunk
 // at a time): the same temporary, permissions and owner. Not thread-safe.
