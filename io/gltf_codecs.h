@@ -1,8 +1,9 @@
-// Byte-level decoding for glTF (io/gltf_document.cpp): little-endian reads, accessor
-// components (with KHR_mesh_quantization's normalisation), base64 and percent-encoding,
-// and the two compression libraries (libmeshoptimizer for EXT_meshopt_compression,
-// libdraco for KHR_draco_mesh_compression). The document layer checks every size and
-// field before calling these; they only check what the decoders themselves produce.
+// Byte-level decoding for glTF (io/gltf_document.cpp, io/gltf_meshes.cpp): little-endian
+// reads, accessor components (with KHR_mesh_quantization's normalisation), base64 and
+// percent-encoding, and the two compression libraries (libmeshoptimizer for
+// EXT_meshopt_compression, libdraco for KHR_draco_mesh_compression). The document layer
+// checks every size and field before calling these; they only check what the decoders
+// themselves produce.
 #pragma once
 
 #include <array>

@@ -1,6 +1,7 @@
 // A glTF 2.0 file as one mesh (a model resource that names a .gltf/.glb): every node of
 // the default scene that draws a mesh contributes its primitives, placed by the composed
-// node transforms. Decoding and validation live in io/gltf_document.cpp.
+// node transforms. Decoding and validation live in io/gltf_document.cpp and
+// io/gltf_meshes.cpp.
 
 #include <algorithm>
 #include <cmath>
