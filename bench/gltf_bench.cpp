@@ -201,11 +201,10 @@ Run finish(pid_t pid, std::chrono::steady_clock::time_point t0, long parentRss) 
     return r;
 }
 
-// Runs `argv` with stdout and stderr into files; waits.
-Run runProgram(const std::vector<std::string>& argv, const fs::path& out, const fs::path& err) {
-    std::vector<char*> args;
-    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
+// Forks: the child runs `child`, which does not return (it ends with _exit); the parent
+// waits for it and measures it.
+template <class F>
+Run forkAndMeasure(F&& child) {
     const long parentRss = procStatusKiB("VmRSS:");
     std::fflush(stdout);
     std::fflush(stderr);
@@ -215,7 +214,16 @@ Run runProgram(const std::vector<std::string>& argv, const fs::path& out, const 
         std::perror("gltf_bench: fork");
         std::exit(1);
     }
-    if (pid == 0) {
+    if (pid == 0) child();
+    return finish(pid, t0, parentRss);
+}
+
+// Runs `argv` with stdout and stderr into files; waits.
+Run runProgram(const std::vector<std::string>& argv, const fs::path& out, const fs::path& err) {
+    std::vector<char*> args;
+    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    return forkAndMeasure([&] {
         const int o = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
         const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
         if (o < 0 || e < 0 || dup2(o, 1) < 0 || dup2(e, 2) < 0) _exit(126);
@@ -224,23 +232,13 @@ Run runProgram(const std::vector<std::string>& argv, const fs::path& out, const 
         execv(args[0], args.data());
         std::fprintf(stderr, "gltf_bench: exec %s: %s\n", args[0], std::strerror(errno));
         _exit(127);
-    }
-    return finish(pid, t0, parentRss);
+    });
 }
 
 // Runs `body` in a forked child (exit code = its return value).
 template <class F>
 Run runChild(F&& body) {
-    const long parentRss = procStatusKiB("VmRSS:");
-    std::fflush(stdout);
-    std::fflush(stderr);
-    const auto t0 = std::chrono::steady_clock::now();
-    const pid_t pid = fork();
-    if (pid < 0) {
-        std::perror("gltf_bench: fork");
-        std::exit(1);
-    }
-    if (pid == 0) {
+    return forkAndMeasure([&] {
         int code = 1;
         try {
             code = body();
@@ -250,8 +248,7 @@ Run runChild(F&& body) {
         std::fflush(stdout);
         std::fflush(stderr);
         _exit(code);
-    }
-    return finish(pid, t0, parentRss);
+    });
 }
 
 std::string readText(const fs::path& p) {

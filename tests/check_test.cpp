@@ -12,6 +12,7 @@
 #include "gpu/gl_context.h"
 #include "tests/support/gl_available.h"
 #include "tests/support/space_builder.h"
+#include "tests/support/thin_rod_check.h"
 #include "tests/test_files.h"
 
 using namespace shadowcull;
@@ -20,18 +21,13 @@ namespace fs = std::filesystem;
 
 TEST(Check, FlagsTheRodTheGpuMethodMissesAtLowResolution) {
     REQUIRE_GL();
-    SpaceBuilder b = thinRod();
     fs::path dir = freshTestDir();
-    b.write((dir / "space").string());
-    cli::CheckOptions opt;
-    opt.spaceDir = (dir / "space").string();
-    opt.gpuResolution = 256;
-    opt.outDir = (dir / "pictures").string();
-    std::ostringstream out, err;
-    EXPECT_EQ(cli::runCheck(opt, out, err), 1) << out.str() << err.str();
-    const std::string text = out.str();
+    const ThinRodCheck check = checkThinRod(dir);
+    EXPECT_EQ(check.code, 1) << check.out << check.err;
+    cli::CheckOptions opt = check.opt;
+    const std::string& text = check.out;
     EXPECT_NE(text.find("1 false culls, 0 false keeps"), std::string::npos) << text;
-    const std::string rod = b.expectations().front().key;
+    const std::string rod = thinRod().expectations().front().key;
     ASSERT_NE(text.find(rod), std::string::npos) << text;
     EXPECT_NE(text.find("GPU false cull"), std::string::npos);
     EXPECT_NE(text.find("witness: origin"), std::string::npos);

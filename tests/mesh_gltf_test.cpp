@@ -19,13 +19,7 @@
 #include "tests/test_files.h"
 
 using namespace shadowcull;
-using shadowcull::testing::freshTestDir;
-using shadowcull::testing::readText;
-using shadowcull::testing::writeText;
-using nlohmann::json;
-namespace fs = std::filesystem;
-
-using namespace shadowcull::testing::gltf;
+using namespace shadowcull::testing::gltf;  // the builder, json, fs and the test-file helpers
 
 namespace {
 

@@ -21,6 +21,7 @@
 #include "io/results_file.h"
 #include "tests/support/gl_available.h"
 #include "tests/support/space_builder.h"
+#include "tests/support/thin_rod_check.h"
 #include "tests/test_files.h"
 #include "util/bitmap_font.h"
 
@@ -199,15 +200,10 @@ TEST(RenderPicture, OutlinesTheGroupsAskedForEvenWhenHidden) {
 TEST(RenderPicture, CheckPictureMarksTheDisagreeingGroup) {
     REQUIRE_GL();
     const fs::path dir = freshTestDir();
-    thinRod().write((dir / "space").string());
-    cli::CheckOptions opt;
-    opt.spaceDir = (dir / "space").string();
-    opt.gpuResolution = 256;
-    opt.outDir = (dir / "pictures").string();
-    std::ostringstream out, err;
-    EXPECT_EQ(cli::runCheck(opt, out, err), 1) << out.str() << err.str();
-    EXPECT_NE(out.str().find("(1 disagreeing group outlined in magenta)"), std::string::npos) << out.str();
-    const Png png = readPng((fs::path(opt.outDir) / "00000000o.chunk-light1.png").string());
+    const ThinRodCheck check = checkThinRod(dir);
+    EXPECT_EQ(check.code, 1) << check.out << check.err;
+    EXPECT_NE(check.out.find("(1 disagreeing group outlined in magenta)"), std::string::npos) << check.out;
+    const Png png = readPng((fs::path(check.opt.outDir) / "00000000o.chunk-light1.png").string());
     ASSERT_GT(png.width, 0);
     int ring = 0;
     for (int y = 0; y < png.height; ++y)

@@ -162,6 +162,22 @@ Totals checkChunk(const fs::path& space, ChunkCoord chunk, int shadowResolution,
     return t;
 }
 
+// The generated forest world (bench/world_gen's worldS), thinned to keep a test short,
+// named `name`, with every filterRadius set (directional, local): chunk (0,0) checked
+// from four cameras a light at 1024 px.
+Totals checkThinnedForest(const std::string& name, double directional, double local) {
+    const fs::path dir = freshTestDir();
+    const fs::path space = dir / "world";
+    bench::WorldSpec spec = bench::worldS();
+    spec.name = name;
+    spec.objectsPerChunk = 60;
+    spec.localLights = 3;
+    spec.seed = 14;
+    bench::writeWorld(spec, space.string());
+    setFilterRadii(space, directional, local);
+    return checkChunk(space, ChunkCoord{0, 0}, 1024, dir);
+}
+
 }  // namespace
 
 TEST(Preview, DefaultPcfRadiusKeepsTheFootprintWithinTheFilter) {
@@ -217,16 +233,7 @@ TEST(Preview, SampleSpaceWithoutFilterShowsNoFalseCull) {
 // test short, with filters wider than the footprint.
 TEST(Preview, GeneratedWorldFramesAgreeWhereTheFilterCoversTheFootprint) {
     REQUIRE_GL();
-    const fs::path dir = freshTestDir();
-    const fs::path space = dir / "world";
-    bench::WorldSpec spec = bench::worldS();
-    spec.name = "preview";
-    spec.objectsPerChunk = 60;
-    spec.localLights = 3;
-    spec.seed = 14;
-    bench::writeWorld(spec, space.string());
-    setFilterRadii(space, 1.2, 0.3);
-    const Totals t = checkChunk(space, ChunkCoord{0, 0}, 1024, dir);
+    const Totals t = checkThinnedForest("preview", 1.2, 0.3);
     EXPECT_EQ(t.previews, 6u * 4u);
     EXPECT_GT(t.covered, 100000u);
     EXPECT_GT(t.culled, 0u);
@@ -236,16 +243,7 @@ TEST(Preview, GeneratedWorldFramesAgreeWhereTheFilterCoversTheFootprint) {
 // false cull shows from any camera, for the sun, the point and the spot lights.
 TEST(Preview, GeneratedWorldWithoutFilterShowsNoFalseCull) {
     REQUIRE_GL();
-    const fs::path dir = freshTestDir();
-    const fs::path space = dir / "world";
-    bench::WorldSpec spec = bench::worldS();
-    spec.name = "preview0";
-    spec.objectsPerChunk = 60;
-    spec.localLights = 3;
-    spec.seed = 14;
-    bench::writeWorld(spec, space.string());
-    setFilterRadii(space, 0.0, 0.0);  // some of its lights have one as generated
-    const Totals t = checkChunk(space, ChunkCoord{0, 0}, 1024, dir);
+    const Totals t = checkThinnedForest("preview0", 0.0, 0.0);  // some of its lights have one as generated
     EXPECT_EQ(t.previews, 6u * 4u);
     EXPECT_EQ(t.covered, 0u);
     EXPECT_GT(t.culled, 0u);

@@ -76,6 +76,19 @@ std::string spaceWithLight(const std::string& lightBody) {
     return "<space>\n  <light>\n" + lightBody + "\n  </light>\n</space>\n";
 }
 
+// Writes `text` as the chunk file 00000000o.chunk in `dir` and reads it as chunk (0,0).
+Expected<ChunkFile> readChunkText(const fs::path& dir, const std::string& text, std::vector<Diagnostic>& diags) {
+    writeText(dir / "00000000o.chunk", text);
+    return readChunkFile((dir / "00000000o.chunk").string(), {0, 0}, diags);
+}
+
+// A model of a.obj placed by the four rows of its transform, on four lines as a chunk file
+// has it: <model> first, its <transform> third.
+std::string modelWithRows(const char* row0, const char* row1, const char* row2, const char* row3) {
+    return std::string("  <model>\n    <resource> a.obj </resource>\n    <transform> <row0> ") + row0 + " </row0> <row1> " + row1 +
+           " </row1> <row2> " + row2 + " </row2> <row3> " + row3 + " </row3> </transform>\n  </model>\n";
+}
+
 }  // namespace
 
 TEST(ChunkName, ParsesTwosComplementHex) {
@@ -279,16 +292,10 @@ TEST(ChunkReader, ReadsModelsTerrainAndTransforms) {
 
 TEST(ChunkReader, BadObjectsAreSkippedWithLine) {
     fs::path dir = freshTestDir();
-    writeText(dir / "00000000o.chunk", R"(<chunk>
-  <model>
-    <resource> a.obj </resource>
-    <transform> <row0> 1 0 0 </row0> <row1> 0 1 0 </row1> <row2> 0 0 1 </row2> <row3> inf 0 0 </row3> </transform>
-  </model>
-  <model>
-    <resource> a.obj </resource>
-    <transform> <row0> 1 0 0 </row0> <row1> 2 0 0 </row1> <row2> 0 0 1 </row2> <row3> 0 0 0 </row3> </transform>
-  </model>
-  <model>
+    std::vector<Diagnostic> diags;
+    auto cf = readChunkText(dir,
+                            "<chunk>\n" + modelWithRows("1 0 0", "0 1 0", "0 0 1", "inf 0 0") +
+                                modelWithRows("1 0 0", "2 0 0", "0 0 1", "0 0 0") + R"(  <model>
     <uuid> x </uuid>
   </model>
   <model>
@@ -296,9 +303,8 @@ TEST(ChunkReader, BadObjectsAreSkippedWithLine) {
     <castsShadow> maybe </castsShadow>
   </model>
 </chunk>
-)");
-    std::vector<Diagnostic> diags;
-    auto cf = readChunkFile((dir / "00000000o.chunk").string(), {0, 0}, diags);
+)",
+                            diags);
     ASSERT_TRUE(cf) << cf.error().what();
     ASSERT_EQ(cf->objects.size(), 4u);
     for (const ChunkObject& o : cf->objects) EXPECT_TRUE(o.skipped);
@@ -317,23 +323,12 @@ TEST(ChunkReader, BadObjectsAreSkippedWithLine) {
 // scale are not.
 TEST(ChunkReader, SingularTransformTestIsScaleInvariant) {
     fs::path dir = freshTestDir();
-    writeText(dir / "00000000o.chunk", R"(<chunk>
-  <model>
-    <resource> a.obj </resource>
-    <transform> <row0> 3.9e-5 0 0 </row0> <row1> 0 3.9e-5 0 </row1> <row2> 0 0 3.9e-5 </row2> <row3> 1 2 3 </row3> </transform>
-  </model>
-  <model>
-    <resource> a.obj </resource>
-    <transform> <row0> 1000 0 0 </row0> <row1> 1000 0.0000001 0 </row1> <row2> 0 0 1000 </row2> <row3> 0 0 0 </row3> </transform>
-  </model>
-  <model>
-    <resource> a.obj </resource>
-    <transform> <row0> 0 0 0 </row0> <row1> 0 1 0 </row1> <row2> 0 0 1 </row2> <row3> 0 0 0 </row3> </transform>
-  </model>
-</chunk>
-)");
     std::vector<Diagnostic> diags;
-    auto cf = readChunkFile((dir / "00000000o.chunk").string(), {0, 0}, diags);
+    auto cf = readChunkText(dir,
+                            "<chunk>\n" + modelWithRows("3.9e-5 0 0", "0 3.9e-5 0", "0 0 3.9e-5", "1 2 3") +
+                                modelWithRows("1000 0 0", "1000 0.0000001 0", "0 0 1000", "0 0 0") +
+                                modelWithRows("0 0 0", "0 1 0", "0 0 1", "0 0 0") + "</chunk>\n",
+                            diags);
     ASSERT_TRUE(cf) << cf.error().what();
     ASSERT_EQ(cf->objects.size(), 3u);
     EXPECT_FALSE(cf->objects[0].skipped) << cf->objects[0].skipReason;
@@ -350,23 +345,12 @@ TEST(ChunkReader, SingularTransformTestIsScaleInvariant) {
 // of a millimetre part) is kept.
 TEST(ChunkReader, TransformTooThinForFloatGeometryIsRefused) {
     fs::path dir = freshTestDir();
-    writeText(dir / "00000000o.chunk", R"(<chunk>
-  <model>
-    <resource> a.obj </resource>
-    <transform> <row0> 1e-45 1e-45 0 </row0> <row1> 0 1 0 </row1> <row2> 0 0 1 </row2> <row3> 50 0.2 50 </row3> </transform>
-  </model>
-  <model>
-    <resource> a.obj </resource>
-    <transform> <row0> 1 0 0 </row0> <row1> 0 1e-12 0 </row1> <row2> 0 0 1 </row2> <row3> 0 0 0 </row3> </transform>
-  </model>
-  <model>
-    <resource> a.obj </resource>
-    <transform> <row0> 1e-8 0 0 </row0> <row1> 0 1e-8 0 </row1> <row2> 0 0 1e-8 </row2> <row3> 0 0 0 </row3> </transform>
-  </model>
-</chunk>
-)");
     std::vector<Diagnostic> diags;
-    auto cf = readChunkFile((dir / "00000000o.chunk").string(), {0, 0}, diags);
+    auto cf = readChunkText(dir,
+                            "<chunk>\n" + modelWithRows("1e-45 1e-45 0", "0 1 0", "0 0 1", "50 0.2 50") +
+                                modelWithRows("1 0 0", "0 1e-12 0", "0 0 1", "0 0 0") +
+                                modelWithRows("1e-8 0 0", "0 1e-8 0", "0 0 1e-8", "0 0 0") + "</chunk>\n",
+                            diags);
     ASSERT_TRUE(cf) << cf.error().what();
     ASSERT_EQ(cf->objects.size(), 3u);
     EXPECT_TRUE(cf->objects[0].skipped);
@@ -381,9 +365,8 @@ TEST(ChunkReader, TransformTooThinForFloatGeometryIsRefused) {
 
 TEST(ChunkReader, MalformedXmlStopsWithLine) {
     fs::path dir = freshTestDir();
-    writeText(dir / "00000000o.chunk", "<chunk>\n  <model>\n    <resource> a.obj </resourc>\n  </model>\n</chunk>\n");
     std::vector<Diagnostic> diags;
-    auto cf = readChunkFile((dir / "00000000o.chunk").string(), {0, 0}, diags);
+    auto cf = readChunkText(dir, "<chunk>\n  <model>\n    <resource> a.obj </resourc>\n  </model>\n</chunk>\n", diags);
     ASSERT_FALSE(cf);
     EXPECT_EQ(cf.error().kind, ErrorKind::BadInput);
     EXPECT_EQ(cf.error().line, 3) << cf.error().what();
@@ -592,9 +575,8 @@ TEST(ChunkFile, HashWithoutShadowsIgnoresTheMasksAndSeesEveryOtherEdit) {
 </chunk>
 )";
     auto hashOf = [&](const std::string& text) {
-        writeText(dir / "00000000o.chunk", text);
         std::vector<Diagnostic> diags;
-        Expected<ChunkFile> cf = readChunkFile((dir / "00000000o.chunk").string(), {0, 0}, diags);
+        Expected<ChunkFile> cf = readChunkText(dir, text, diags);
         EXPECT_TRUE(cf) << cf.error().what();
         return cf ? cf->contentWithoutShadowsHash : 0;
     };

@@ -21,7 +21,12 @@
 
 namespace shadowcull::testing::gltf {
 
+// What the glTF loader's tests use besides the builder: `using namespace
+// shadowcull::testing::gltf` is their whole preamble.
 using nlohmann::json;
+using shadowcull::testing::freshTestDir;
+using shadowcull::testing::readText;
+using shadowcull::testing::writeText;
 namespace fs = std::filesystem;
 
 inline std::string base64(const std::vector<uint8_t>& d) {

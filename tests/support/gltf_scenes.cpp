@@ -208,6 +208,21 @@ long worldRoot(GltfSceneBuilder& b, bool moved) {
                        moved ? glm::angleAxis(glm::radians(37.0), glm::dvec3(0, 1, 0)) : glm::dquat(1, 0, 0, 0)));
 }
 
+// The known scenes' sun (the first light, bit 0): a directional light on a node over the
+// origin, tilted.
+void addSun(GltfSceneBuilder& b, long world) {
+    const size_t sun = b.node("Sun", world, glm::dvec3(0, 50, 0), aimMinusZ({0.3, -1.0, 0.2}));
+    b.setLight(sun, {{"type", "directional"}, {"name", "sun"}, {"intensity", 3.0}});
+}
+
+// A node `name` under `parent` that draws `mesh`.
+size_t placeMesh(GltfSceneBuilder& b, const std::string& name, size_t mesh, long parent, const glm::dvec3& t,
+                 const glm::dquat& r = glm::dquat(1, 0, 0, 0), const glm::dvec3& s = glm::dvec3(1.0)) {
+    const size_t n = b.node(name, parent, t, r, s);
+    b.setMesh(n, mesh);
+    return n;
+}
+
 }  // namespace
 
 KnownGltfScene courtyardScene(bool moved) {
@@ -216,8 +231,7 @@ KnownGltfScene courtyardScene(bool moved) {
     GltfSceneBuilder& b = k.scene;
     const long world = worldRoot(b, moved);
     // Lights, in bit order: sun (bit 0), lamp (bit 1), torch (bit 2).
-    const size_t sun = b.node("Sun", world, glm::dvec3(0, 50, 0), aimMinusZ({0.3, -1.0, 0.2}));
-    b.setLight(sun, {{"type", "directional"}, {"name", "sun"}, {"intensity", 3.0}});
+    addSun(b, world);
     const size_t lamp = b.node("Lamp", world, glm::dvec3(20, 3, 20));
     b.setLight(lamp, {{"type", "point"}, {"name", "lamp"}, {"range", 6.0}, {"intensity", 50.0}});
     b.setExtras(lamp, {{"shadowcull_bias", 0.02}});
@@ -233,11 +247,7 @@ KnownGltfScene courtyardScene(bool moved) {
     const size_t bush = b.mesh("Bush", {cubePrimitive({0, 0.55f, 4}, 1.0f, bark), squarePrimitive(5.0f, 4.0f, 0, 0, leaves)});
 
     auto place = [&](const std::string& name, size_t mesh, long parent, const glm::dvec3& t, const glm::dquat& r = glm::dquat(1, 0, 0, 0),
-                     const glm::dvec3& s = glm::dvec3(1.0)) {
-        const size_t n = b.node(name, parent, t, r, s);
-        b.setMesh(n, mesh);
-        return n;
-    };
+                     const glm::dvec3& s = glm::dvec3(1.0)) { return placeMesh(b, name, mesh, parent, t, r, s); };
     // The ground's own shadow falls below it, where nothing is.
     place("Ground", ground, world, {0, 0, 0});
     k.expected["Ground"] = {0};
@@ -278,16 +288,13 @@ KnownGltfScene nonCasterScene(bool moved) {
     k.name = moved ? "non-casters-moved" : "non-casters";
     GltfSceneBuilder& b = k.scene;
     const long world = worldRoot(b, moved);
-    const size_t sun = b.node("Sun", world, glm::dvec3(0, 50, 0), aimMinusZ({0.3, -1.0, 0.2}));
-    b.setLight(sun, {{"type", "directional"}, {"name", "sun"}, {"intensity", 3.0}});
+    addSun(b, world);
     k.lightNames = {"sun"};
     const size_t cube = b.mesh("Cube", {cubePrimitive()});
     const size_t ground = b.mesh("Ground", {squarePrimitive(30.0f)});
     const size_t slab = b.mesh("Slab", {cubePrimitive(glm::vec3(0.0f), 1.0f)});  // scaled into a slab
     auto place = [&](const std::string& name, size_t mesh, const glm::dvec3& t, const glm::dvec3& s = glm::dvec3(1.0)) {
-        const size_t n = b.node(name, world, t, glm::dquat(1, 0, 0, 0), s);
-        b.setMesh(n, mesh);
-        return n;
+        return placeMesh(b, name, mesh, world, t, glm::dquat(1, 0, 0, 0), s);
     };
     place("Ground", ground, {0, 0, 0});
     k.expected["Ground"] = {0};
