@@ -9,6 +9,7 @@
 #include "cli/report.h"
 #include "core/scene.h"
 #include "io/chunk_writer.h"
+#include "util/stop_request.h"
 
 namespace shadowcull::cli {
 
@@ -137,31 +138,157 @@ MergeOutcome mergeShards(const std::vector<std::pair<std::string, results::Resul
     return o;
 }
 
+namespace {
+
+// One shard's file for the checks: streamed, with its chunks' names only (the records are
+// read again when the merged file is written), or read whole when it is not in the writer's
+// layout (then `whole`).
+struct ShardInput {
+    std::string path;
+    results::ResultsFile file;
+    bool whole = false;
+};
+
+Expected<ShardInput> readShardNames(const std::string& path) {
+    ShardInput in{path, {}, false};
+    std::vector<results::ChunkRecord> names;
+    Expected<std::optional<results::ResultsFile>> streamed = results::streamResultsFile(path, [&](results::ChunkRecord& c) {
+        names.emplace_back().chunk = std::move(c.chunk);
+        return Status::ok();
+    });
+    if (streamed && *streamed) {
+        in.file = std::move(**streamed);
+        in.file.chunks = std::move(names);
+        return in;
+    }
+    Expected<results::ResultsFile> f = results::readResultsFile(path);
+    if (!f) return f.error();
+    in.file = std::move(*f);
+    in.whole = true;
+    return in;
+}
+
+// The shards in the order their chunks go into the merged file, when each holds one run of
+// the grid order and the runs do not interleave (as `bake --shard` partitions a space):
+// then the merged chunks are the shards' chunks one shard after another. Empty otherwise.
+std::vector<const ShardInput*> runOrder(const std::vector<ShardInput>& shards) {
+    std::vector<const ShardInput*> order;
+    for (const ShardInput& s : shards)
+        if (!s.file.chunks.empty()) order.push_back(&s);
+    std::sort(order.begin(), order.end(), [](const ShardInput* a, const ShardInput* b) {
+        return coordOf(a->file.chunks.front().chunk) < coordOf(b->file.chunks.front().chunk);
+    });
+    std::optional<ChunkCoord> last;
+    for (const ShardInput* s : order)
+        for (const results::ChunkRecord& c : s->file.chunks) {
+            const ChunkCoord at = coordOf(c.chunk);
+            if (last && !(*last < at)) return {};
+            last = at;
+        }
+    return order;
+}
+
+// Writes the merged file chunk by chunk from the shards' files in `order` (one chunk in
+// memory at a time), counting the summary as it goes; `checked` is mergeShards' outcome on
+// the names (warnings, lights). The same bytes as writeResults of the merge in memory.
+Status writeStreamed(const std::string& outPath, const std::vector<const ShardInput*>& order, const MergeOutcome& checked,
+                     size_t& chunks, uint64_t& bits) {
+    Expected<StagedFile> outFile = StagedFile::open(outPath);
+    if (!outFile) return outFile.error();
+    const std::string temp = tempPathFor(outPath);
+    const bool held = holdTemporary(temp.c_str());
+    ResultsBuilder builder(checked.merged.lights);
+    Status s = outFile->append(results::resultsHead());
+    chunks = 0;
+    for (const ShardInput* shard : order) {
+        if (!s) break;
+        size_t inShard = 0;
+        Expected<std::optional<results::ResultsFile>> again =
+            results::streamResultsFile(shard->path, [&](results::ChunkRecord& c) {
+                if (inShard >= shard->file.chunks.size() || c.chunk != shard->file.chunks[inShard].chunk)
+                    return Status(makeError(ErrorKind::BadInput, shard->path, 0, "changed while it was being merged"));
+                ++inShard;
+                builder.add(c);
+                return outFile->append((chunks++ == 0 ? "\n" : ",\n") + results::chunkJson(c));
+            });
+        if (!again) s = again.error();
+        else if (!*again || inShard != shard->file.chunks.size())
+            s = makeError(ErrorKind::BadInput, shard->path, 0, "changed while it was being merged");
+    }
+    results::ResultsFile tail;
+    tail.version = checked.merged.version;
+    tail.space = checked.merged.space;
+    tail.lights = checked.merged.lights;
+    tail.warnings = checked.merged.warnings;
+    tail.summary = builder.summary();
+    bits = tail.summary.bits;
+    if (s) s = outFile->append(results::resultsTail(tail, chunks > 0));
+    if (s) s = outFile->sync();
+    if (s) s = outFile->commit();
+    if (held) releaseTemporary();
+    return s;
+}
+
+}  // namespace
+
 int runMerge(const MergeOptions& opt, std::ostream& out, std::ostream& err) {
     if (Status s = refuseInputAsOutput(opt.outPath, opt.shardPaths, "OUT"); !s) {
         err << "shadowcull: error: " << s.error().what() << "\n";
         return kExitBadInput;
     }
-    std::vector<std::pair<std::string, results::ResultsFile>> shards;
+    // 1. The shards' files without their chunks' contents: every check needs only names.
+    std::vector<ShardInput> inputs;
     for (const std::string& path : opt.shardPaths) {
-        Expected<results::ResultsFile> f = results::readResultsFile(path);
-        if (!f) {
-            err << "shadowcull: error: " << f.error().what() << "\n";
-            return exitCodeFor(f.error().kind);
+        Expected<ShardInput> in = readShardNames(path);
+        if (!in) {
+            err << "shadowcull: error: " << in.error().what() << "\n";
+            return exitCodeFor(in.error().kind);
         }
-        shards.emplace_back(path, std::move(*f));
+        inputs.push_back(std::move(*in));
     }
-    const MergeOutcome o = mergeShards(shards);
-    if (o.exitCode != 0) {
-        err << "shadowcull: error: " << o.message << "; nothing written\n";
-        return o.exitCode;
+    std::vector<std::pair<std::string, results::ResultsFile>> named;
+    for (const ShardInput& in : inputs) named.emplace_back(in.path, in.file);
+    const MergeOutcome checked = mergeShards(named);
+    named.clear();
+    if (checked.exitCode != 0) {
+        err << "shadowcull: error: " << checked.message << "; nothing written\n";
+        return checked.exitCode;
     }
-    if (Status s = writeFileAtomic(opt.outPath, results::writeResults(o.merged)); !s) {
-        err << "shadowcull: error: " << s.error().what() << "\n";
-        return kExitIo;
+    // 2. Streamed when every shard was streamed and their chunks are runs of the grid order
+    // (memory independent of the world); otherwise in memory, as the model says.
+    size_t chunks = 0;
+    uint64_t bits = 0;
+    const bool streamable = std::none_of(inputs.begin(), inputs.end(), [](const ShardInput& in) { return in.whole; });
+    const std::vector<const ShardInput*> order = streamable ? runOrder(inputs) : std::vector<const ShardInput*>{};
+    const bool streamed = streamable && (!order.empty() || checked.merged.chunks.empty());
+    Status written;
+    if (streamed) {
+        written = writeStreamed(opt.outPath, order, checked, chunks, bits);
+    } else {
+        std::vector<std::pair<std::string, results::ResultsFile>> shards;
+        for (ShardInput& in : inputs) {
+            Expected<results::ResultsFile> f = in.whole ? Expected<results::ResultsFile>(std::move(in.file)) : results::readResultsFile(in.path);
+            if (!f) {
+                err << "shadowcull: error: " << f.error().what() << "\n";
+                return exitCodeFor(f.error().kind);
+            }
+            shards.emplace_back(in.path, std::move(*f));
+        }
+        const MergeOutcome o = mergeShards(shards);
+        if (o.exitCode != 0) {
+            err << "shadowcull: error: " << o.message << "; nothing written\n";
+            return o.exitCode;
+        }
+        written = writeFileAtomic(opt.outPath, results::writeResults(o.merged));
+        chunks = o.merged.chunks.size();
+        bits = o.merged.summary.bits;
     }
-    out << "merged " << shards.size() << " shard(s): " << o.merged.chunks.size() << " chunk(s), " << o.merged.summary.bits
-        << " bits, into " << opt.outPath << "\n";
+    if (!written) {
+        err << "shadowcull: error: " << written.error().what() << "\n";
+        return written.error().kind == ErrorKind::BadInput ? kExitBadInput : kExitIo;
+    }
+    out << "merged " << opt.shardPaths.size() << " shard(s): " << chunks << " chunk(s), " << bits << " bits, into " << opt.outPath
+        << "\n";
     return kExitOk;
 }
 

@@ -1,6 +1,10 @@
 #include "io/results_file.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <set>
 
@@ -435,6 +439,56 @@ Expected<ResultsFile> parseResults(const std::string& path, const std::string& t
         return badInput(path, 0, "malformed results at " + where + ": " + e.message);
     }
     return f;
+}
+
+}  // namespace shadowcull::results
+
+namespace shadowcull::results {
+
+namespace {
+
+// The lines writeResults puts around and between the chunks (indent 1 for the top level's
+// keys, 2 for a chunk object's braces); JSON strings hold no raw newline, so lines are safe.
+constexpr const char* kChunksOpen = " \"chunks\": [";
+constexpr const char* kChunkOpen = "  {";
+constexpr const char* kChunkClose = "  }";
+constexpr const char* kChunkCloseMore = "  },";
+constexpr const char* kChunksClose = " ],";
+
+}  // namespace
+
+Expected<std::optional<ResultsFile>> streamResultsFile(const std::string& path, const ChunkVisitor& chunk) {
+    const std::optional<ResultsFile> whole;  // "read it whole"
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || uint64_t(st.st_size) > (uint64_t(1) << 32)) return whole;
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    if (!in || !std::getline(in, line) || line != "{" || !std::getline(in, line) || line != kChunksOpen) return whole;
+    std::set<std::string> names;
+    std::string text;
+    for (bool more = true; more;) {
+        if (!std::getline(in, line) || line != kChunkOpen) return whole;
+        text = line;
+        while (true) {
+            if (!std::getline(in, line)) return whole;
+            if (line == kChunkClose || line == kChunkCloseMore) break;
+            text += "\n" + line;
+        }
+        text += "\n";
+        text += kChunkClose;
+        more = line == kChunkCloseMore;
+        // The name, as the whole-file reader checks it: a chunk given twice is its error.
+        Expected<ChunkRecord> record = parseChunkJson(path, text);
+        if (!record || !names.insert(record->chunk).second) return whole;
+        if (Status s = chunk(*record); !s) return s.error();
+    }
+    // The rest: " ],", then the other keys; read as a file without chunks.
+    if (!std::getline(in, line) || line != kChunksClose) return whole;
+    std::string rest((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) return whole;
+    Expected<ResultsFile> f = parseResults(path, resultsHead() + "],\n" + rest);
+    if (!f) return whole;
+    return std::optional<ResultsFile>(std::move(*f));
 }
 
 }  // namespace shadowcull::results

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -176,5 +177,16 @@ std::string resultsHead();
 // Everything after the last chunk; `anyChunk`: whether a chunk was written (the chunks of
 // `file` are not used).
 std::string resultsTail(const ResultsFile& file, bool anyChunk);
+
+// Reads a results file in writeResults' layout one chunk at a time, for a reader whose
+// memory must not grow with the file (merge): `chunk` gets each chunk, read from its text
+// by parseChunkJson (the whole-file reader's checks), in file order; the result is the file without its chunks, read by
+// parseResults (so its summary is a file's without chunks unless it has one). std::nullopt
+// (no error) when the file is not laid out as the writer lays it out (edited by hand,
+// pretty-printed otherwise, no chunks, not a regular file or too large): read it whole
+// then (readResultsFile), which gives the same model or the error. An error that `chunk`
+// returns is returned as is. Checks "no chunk twice" as the whole-file reader does.
+using ChunkVisitor = std::function<Status(ChunkRecord& chunk)>;
+Expected<std::optional<ResultsFile>> streamResultsFile(const std::string& path, const ChunkVisitor& chunk);
 
 }  // namespace shadowcull::results

@@ -5,6 +5,7 @@
 #include <set>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "bench/world_gen.h"
 #include "cli/shard.h"
@@ -244,4 +245,46 @@ TEST(Shards, InPlaceShardsBakedOneAfterAnotherMergeToTheSingleBake) {
         << readText(dir / "again.err");
     EXPECT_EQ(readText(state), stateBefore) << "the rerun baked chunks again";
     EXPECT_EQ(readText(dir / "again.json"), readText(dir / "shard-1.json"));
+}
+
+// merge streams the shards' files chunk by chunk when they are laid out as the bake writes
+// them; a file laid out otherwise (pretty-printed again by hand or by a tool) is read whole,
+// and the merge is the same bytes either way.
+TEST(Shards, MergeOfAReformattedShardFileIsTheSameBytes) {
+    const fs::path dir = freshTestDir();
+    const std::string space = writeSmallWorld(dir);
+    ASSERT_EQ(bake("'" + space + "' --dry-run --results '" + (dir / "whole.json").string() + "'", dir, "whole"), 0)
+        << readText(dir / "whole.err");
+    std::string shardFiles;
+    for (int k = 1; k <= 2; ++k) {
+        const std::string name = "shard-" + std::to_string(k);
+        ASSERT_EQ(bake("'" + space + "' --dry-run --results '" + (dir / (name + ".json")).string() + "' --shard " +
+                           std::to_string(k) + "/2",
+                       dir, name),
+                  0)
+            << readText(dir / (name + ".err"));
+        shardFiles += " '" + (dir / (name + ".json")).string() + "'";
+    }
+    const fs::path streamed = dir / "streamed.json";
+    ASSERT_EQ(merge("'" + streamed.string() + "'" + shardFiles, dir, "streamed"), 0) << readText(dir / "streamed.err");
+    EXPECT_EQ(readText(streamed), readText(dir / "whole.json"));
+
+    // Shard 2 pretty-printed with another indent: read whole, merged to the same bytes.
+    const std::string original = readText(dir / "shard-2.json");
+    const std::string reformatted = nlohmann::json::parse(original).dump(4) + "\n";
+    ASSERT_NE(reformatted, original);
+    writeText(dir / "shard-2.json", reformatted);
+    const fs::path whole = dir / "read-whole.json";
+    ASSERT_EQ(merge("'" + whole.string() + "'" + shardFiles, dir, "read-whole"), 0) << readText(dir / "read-whole.err");
+    EXPECT_EQ(readText(whole), readText(dir / "whole.json"));
+
+    // A malformed chunk in a streamed file is refused with the whole-file reader's words.
+    std::string cut = original;
+    const size_t at = cut.find("\"chunk\": \"");
+    ASSERT_NE(at, std::string::npos);
+    cut.replace(at, 10, "\"chunk\": 3, \"was\": \"");
+    writeText(dir / "shard-2.json", cut);
+    EXPECT_EQ(merge("'" + (dir / "bad.json").string() + "'" + shardFiles, dir, "bad"), 3);
+    EXPECT_NE(readText(dir / "bad.err").find("malformed results at chunks[0]"), std::string::npos) << readText(dir / "bad.err");
+    EXPECT_FALSE(fs::exists(dir / "bad.json"));
 }
