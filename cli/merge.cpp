@@ -140,47 +140,40 @@ MergeOutcome mergeShards(const std::vector<std::pair<std::string, results::Resul
 
 namespace {
 
-// One shard's file for the checks: streamed, with its chunks' names only (the records are
-// read again when the merged file is written), or read whole when it is not in the writer's
-// layout (then `whole`).
-struct ShardInput {
-    std::string path;
-    results::ResultsFile file;
-    bool whole = false;
-};
+using Shard = std::pair<std::string, results::ResultsFile>;  // {path, file}, as mergeShards takes them
 
-Expected<ShardInput> readShardNames(const std::string& path) {
-    ShardInput in{path, {}, false};
+// One shard's file for the checks: streamed, keeping its chunks' names only (the records are
+// read again when the merged file is written), or, when it is not in the writer's layout,
+// read whole (then `whole` is set).
+Expected<Shard> readShard(const std::string& path, bool& whole) {
     std::vector<results::ChunkRecord> names;
     Expected<std::optional<results::ResultsFile>> streamed = results::streamResultsFile(path, [&](results::ChunkRecord& c) {
         names.emplace_back().chunk = std::move(c.chunk);
         return Status::ok();
     });
-    if (streamed && *streamed) {
-        in.file = std::move(**streamed);
-        in.file.chunks = std::move(names);
-        return in;
+    whole = !(streamed && *streamed);
+    if (!whole) {
+        (*streamed)->chunks = std::move(names);
+        return Shard{path, std::move(**streamed)};
     }
     Expected<results::ResultsFile> f = results::readResultsFile(path);
     if (!f) return f.error();
-    in.file = std::move(*f);
-    in.whole = true;
-    return in;
+    return Shard{path, std::move(*f)};
 }
 
 // The shards in the order their chunks go into the merged file, when each holds one run of
 // the grid order and the runs do not interleave (as `bake --shard` partitions a space):
 // then the merged chunks are the shards' chunks one shard after another. Empty otherwise.
-std::vector<const ShardInput*> runOrder(const std::vector<ShardInput>& shards) {
-    std::vector<const ShardInput*> order;
-    for (const ShardInput& s : shards)
-        if (!s.file.chunks.empty()) order.push_back(&s);
-    std::sort(order.begin(), order.end(), [](const ShardInput* a, const ShardInput* b) {
-        return coordOf(a->file.chunks.front().chunk) < coordOf(b->file.chunks.front().chunk);
+std::vector<const Shard*> runOrder(const std::vector<Shard>& shards) {
+    std::vector<const Shard*> order;
+    for (const Shard& s : shards)
+        if (!s.second.chunks.empty()) order.push_back(&s);
+    std::sort(order.begin(), order.end(), [](const Shard* a, const Shard* b) {
+        return coordOf(a->second.chunks.front().chunk) < coordOf(b->second.chunks.front().chunk);
     });
     std::optional<ChunkCoord> last;
-    for (const ShardInput* s : order)
-        for (const results::ChunkRecord& c : s->file.chunks) {
+    for (const Shard* s : order)
+        for (const results::ChunkRecord& c : s->second.chunks) {
             const ChunkCoord at = coordOf(c.chunk);
             if (last && !(*last < at)) return {};
             last = at;
@@ -191,7 +184,7 @@ std::vector<const ShardInput*> runOrder(const std::vector<ShardInput>& shards) {
 // Writes the merged file chunk by chunk from the shards' files in `order` (one chunk in
 // memory at a time), counting the summary as it goes; `checked` is mergeShards' outcome on
 // the names (warnings, lights). The same bytes as writeResults of the merge in memory.
-Status writeStreamed(const std::string& outPath, const std::vector<const ShardInput*>& order, const MergeOutcome& checked,
+Status writeStreamed(const std::string& outPath, const std::vector<const Shard*>& order, const MergeOutcome& checked,
                      size_t& chunks, uint64_t& bits) {
     Expected<StagedFile> outFile = StagedFile::open(outPath);
     if (!outFile) return outFile.error();
@@ -200,20 +193,22 @@ Status writeStreamed(const std::string& outPath, const std::vector<const ShardIn
     ResultsBuilder builder(checked.merged.lights);
     Status s = outFile->append(results::resultsHead());
     chunks = 0;
-    for (const ShardInput* shard : order) {
+    for (const Shard* shard : order) {
         if (!s) break;
+        const std::string& path = shard->first;
+        const std::vector<results::ChunkRecord>& names = shard->second.chunks;
         size_t inShard = 0;
         Expected<std::optional<results::ResultsFile>> again =
-            results::streamResultsFile(shard->path, [&](results::ChunkRecord& c) {
-                if (inShard >= shard->file.chunks.size() || c.chunk != shard->file.chunks[inShard].chunk)
-                    return Status(makeError(ErrorKind::BadInput, shard->path, 0, "changed while it was being merged"));
+            results::streamResultsFile(path, [&](results::ChunkRecord& c) {
+                if (inShard >= names.size() || c.chunk != names[inShard].chunk)
+                    return Status(makeError(ErrorKind::BadInput, path, 0, "changed while it was being merged"));
                 ++inShard;
                 builder.add(c);
                 return outFile->append((chunks++ == 0 ? "\n" : ",\n") + results::chunkJson(c));
             });
         if (!again) s = again.error();
-        else if (!*again || inShard != shard->file.chunks.size())
-            s = makeError(ErrorKind::BadInput, shard->path, 0, "changed while it was being merged");
+        else if (!*again || inShard != names.size())
+            s = makeError(ErrorKind::BadInput, path, 0, "changed while it was being merged");
     }
     results::ResultsFile tail;
     tail.version = checked.merged.version;
@@ -237,19 +232,19 @@ int runMerge(const MergeOptions& opt, std::ostream& out, std::ostream& err) {
         return kExitBadInput;
     }
     // 1. The shards' files without their chunks' contents: every check needs only names.
-    std::vector<ShardInput> inputs;
+    std::vector<Shard> shards;
+    std::vector<bool> readWhole;
     for (const std::string& path : opt.shardPaths) {
-        Expected<ShardInput> in = readShardNames(path);
-        if (!in) {
-            err << "shadowcull: error: " << in.error().what() << "\n";
-            return exitCodeFor(in.error().kind);
+        bool whole = false;
+        Expected<Shard> shard = readShard(path, whole);
+        if (!shard) {
+            err << "shadowcull: error: " << shard.error().what() << "\n";
+            return exitCodeFor(shard.error().kind);
         }
-        inputs.push_back(std::move(*in));
+        shards.push_back(std::move(*shard));
+        readWhole.push_back(whole);
     }
-    std::vector<std::pair<std::string, results::ResultsFile>> named;
-    for (const ShardInput& in : inputs) named.emplace_back(in.path, in.file);
-    const MergeOutcome checked = mergeShards(named);
-    named.clear();
+    const MergeOutcome checked = mergeShards(shards);
     if (checked.exitCode != 0) {
         err << "shadowcull: error: " << checked.message << "; nothing written\n";
         return checked.exitCode;
@@ -258,21 +253,20 @@ int runMerge(const MergeOptions& opt, std::ostream& out, std::ostream& err) {
     // (memory independent of the world); otherwise in memory, as the model says.
     size_t chunks = 0;
     uint64_t bits = 0;
-    const bool streamable = std::none_of(inputs.begin(), inputs.end(), [](const ShardInput& in) { return in.whole; });
-    const std::vector<const ShardInput*> order = streamable ? runOrder(inputs) : std::vector<const ShardInput*>{};
-    const bool streamed = streamable && (!order.empty() || checked.merged.chunks.empty());
+    const bool streamable = std::none_of(readWhole.begin(), readWhole.end(), [](bool whole) { return whole; });
+    const std::vector<const Shard*> order = streamable ? runOrder(shards) : std::vector<const Shard*>{};
     Status written;
-    if (streamed) {
+    if (streamable && (!order.empty() || checked.merged.chunks.empty())) {
         written = writeStreamed(opt.outPath, order, checked, chunks, bits);
     } else {
-        std::vector<std::pair<std::string, results::ResultsFile>> shards;
-        for (ShardInput& in : inputs) {
-            Expected<results::ResultsFile> f = in.whole ? Expected<results::ResultsFile>(std::move(in.file)) : results::readResultsFile(in.path);
+        for (size_t k = 0; k < shards.size(); ++k) {
+            if (readWhole[k]) continue;
+            Expected<results::ResultsFile> f = results::readResultsFile(shards[k].first);
             if (!f) {
                 err << "shadowcull: error: " << f.error().what() << "\n";
                 return exitCodeFor(f.error().kind);
             }
-            shards.emplace_back(in.path, std::move(*f));
+            shards[k].second = std::move(*f);
         }
         const MergeOutcome o = mergeShards(shards);
         if (o.exitCode != 0) {
