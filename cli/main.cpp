@@ -20,6 +20,7 @@
 #include "cli/interrupt.h"
 #include "cli/merge.h"
 #include "cli/output_guard.h"
+#include "cli/plan.h"
 #include "cli/pipeline.h"
 #include "cli/preview_command.h"
 #include "cli/progress_reporter.h"
@@ -38,6 +39,22 @@ using namespace shadowcull;
 using namespace shadowcull::cli;
 
 namespace {
+
+int runPlanCommand(PlanOptions opt, bool quiet) {
+    ProgressReporter progress = ProgressReporter::forStderr(!quiet);
+    opt.onScanned = [&](size_t files, size_t total) { progress.scanned(files, total); };
+    Expected<PlanSummary> r = makePlan(opt);
+    progress.finish();
+    if (!r) {
+        std::fprintf(stderr, "shadowcull: error: %s\n", r.error().what().c_str());
+        return exitCodeFor(r.error().kind);
+    }
+    for (const Diagnostic& d : r->diagnostics) std::fprintf(stderr, "shadowcull: warning: %s\n", d.what().c_str());
+    if (!quiet)
+        std::printf("plan: %s, %zu chunks in %d shards (at most %zu chunks baked and %zu read by one shard), %.1f s\n",
+                    opt.planDir.c_str(), r->chunks, opt.shards, r->largestShardChunks, r->largestWindowChunks, r->seconds);
+    return r->diagnostics.empty() ? kExitOk : kExitSkippedInput;
+}
 
 int runBakeCommand(BakeOptions opt, bool quiet) {
     ProgressReporter progress = ProgressReporter::forStderr(!quiet);
@@ -136,6 +153,10 @@ Command bakeCommand(CLI::App& app, GlFlags& gl) {
         ->check(CLI::Validator(
             [](std::string& v) { return parseShard(v) ? std::string() : "expected K/N with 1 <= K <= N <= " + std::to_string(kMaxShards); },
             "K/N"));
+    bake->add_option("--plan", opt.planDir,
+                     "With --shard: the plan 'shadowcull plan' wrote; the shard reads it and only the chunks its windows "
+                     "hold (exit 9 if the space changed since)")
+        ->check(existingDirectory());
     addGlOptions(bake, gl);
     return {bake, [st] {
                 BakeOptions& opt = st->opt;
@@ -149,6 +170,10 @@ Command bakeCommand(CLI::App& app, GlFlags& gl) {
                 opt.gpuBaseline = st->method == "gpu";
                 opt.witnessBaselineCulls = opt.gpuBaseline;  // the note says how many 0s have a witness
                 if (std::optional<ShardSpec> shard = parseShard(st->shardText)) opt.shardIndex = shard->index, opt.shardCount = shard->count;
+                if (!opt.planDir.empty() && opt.shardCount == 0) {
+                    std::fprintf(stderr, "shadowcull bake: --plan is a sharded bake's plan: give --shard K/N too\n");
+                    return int(kExitUsage);
+                }
                 if (opt.shardCount > 0 && !opt.chunkNames.empty()) {
                     std::fprintf(stderr, "shadowcull bake: --shard bakes a part of the whole space; it cannot be combined with --chunk\n");
                     return int(kExitUsage);
@@ -345,6 +370,29 @@ Command reportCommand(CLI::App& app) {
     return {report, [reportOpt] { return runReport(*reportOpt, std::cout, std::cerr); }};
 }
 
+Command planCommand(CLI::App& app) {
+    struct State {
+        PlanOptions opt;
+        bool quiet = false;
+    };
+    auto st = std::make_shared<State>();
+    PlanOptions& opt = st->opt;
+    CLI::App* plan = app.add_subcommand("plan", "Scan a space once and partition it for a sharded bake (bake --shard K/N --plan DIR)");
+    plan->add_option("space", opt.spaceDir, "Space directory (holds space.xml and *.chunk)")->required()->check(existingDirectory());
+    plan->footer(kPlanExitCodes);
+    plan->add_option("--shards", opt.shards, "How many shards (N of bake --shard K/N)")
+        ->required()
+        ->check(within(1, kMaxShards));
+    plan->add_option("--plan", opt.planDir, "Directory to write the plan into (plan.json, shard-K-of-N.json)")->required();
+    plan->add_option("--res", opt.resourceRoot, "Resource root (default: <resourceRoot> of space.xml, else the space)");
+    plan->add_option("--threads", opt.threads, "Worker threads (default, or 0: all cores)")->check(atLeast(0));
+    plan->add_flag("--quiet,-q", st->quiet, "No progress and no summary");
+    return {plan, [st] {
+                stopBetweenSteps();
+                return runPlanCommand(st->opt, st->quiet);
+            }};
+}
+
 Command mergeCommand(CLI::App& app) {
     auto mergeOpt = std::make_shared<MergeOptions>();
     CLI::App* merge = app.add_subcommand("merge", "Join the results files of the shards of one bake (bake --shard K/N --results)");
@@ -374,7 +422,7 @@ int main(int argc, char** argv) {
     const std::vector<Command> commands{bakeCommand(app, glFlags),  sweepCommand(app, glFlags),  diffCommand(app),
                                         explainCommand(app),        checkCommand(app, glFlags),  renderCommand(app, glFlags),
                                         previewCommand(app),        importCommand(app),          exportCommand(app),
-                                        reportCommand(app),         mergeCommand(app)};
+                                        reportCommand(app),         planCommand(app),            mergeCommand(app)};
     try {
         app.parse(argc, argv);
     } catch (const CLI::Success& e) {  // --help, --version

@@ -18,6 +18,7 @@
 #include "cli/report.h"
 #include "cli/resume.h"
 #include "cli/shard.h"
+#include "io/shard_plan.h"
 #include "core/window.h"
 #include "gpu/baseline.h"
 #include "gpu/confirm_stage.h"
@@ -40,6 +41,7 @@ int exitCodeFor(ErrorKind kind) {
         case ErrorKind::Io: return kExitIo;
         case ErrorKind::Internal: return kExitInternal;
         case ErrorKind::Busy: return kExitBusy;
+        case ErrorKind::StalePlan: return kExitStalePlan;
         case ErrorKind::Interrupted: return exitCodeForSignal(pendingInterrupt() ? pendingInterrupt() : SIGINT);
     }
     return kExitInternal;
@@ -360,11 +362,23 @@ Expected<std::vector<ChunkCoord>> namedChunks(const BakeOptions& opt) {
     return only;
 }
 
+// The space as the bake reads it: scanned (the whole space, or what `only`'s rectangles
+// hold), or with --plan the shard's part of a plan (`plannedTargets` gets its chunks).
+Expected<SpaceSource> openSpace(const BakeOptions& opt, const std::vector<ChunkCoord>* only,
+                                std::vector<ChunkCoord>& plannedTargets) {
+    if (opt.planDir.empty()) return SpaceSource::scan(opt.spaceDir, opt.resourceRoot, only, opt.onScanned);
+    Expected<LoadedShardPlan> plan = readShardPlan(opt.planDir, opt.shardIndex, opt.shardCount);
+    if (!plan) return plan.error();
+    plannedTargets = plan->shard.assigned;
+    return SpaceSource::planned(opt.spaceDir, opt.resourceRoot, plannedSpaceOf(opt.planDir, std::move(*plan)));
+}
+
 // The chunks to bake: every chunk, or those named (--chunk, or bakeOnly), in grid order,
 // once each (the order of the results file). With --shard, this shard's part of every
-// chunk, and its record in `result`.
+// chunk (from its plan, or computed as every shard computes it), and its record in `result`.
 Expected<std::vector<ChunkCoord>> chunksToBake(const BakeOptions& opt, const SpaceSource& source,
-                                               const std::vector<ChunkCoord>& only, BakeResult& result) {
+                                               const std::vector<ChunkCoord>& only,
+                                               const std::vector<ChunkCoord>& plannedTargets, BakeResult& result) {
     std::vector<ChunkCoord> targets;
     if (opt.chunkNames.empty() && opt.bakeOnly.empty()) {
         for (const auto& [c, e] : source.chunks()) targets.push_back(c);
@@ -381,16 +395,29 @@ Expected<std::vector<ChunkCoord>> chunksToBake(const BakeOptions& opt, const Spa
     if (opt.shardCount > 0) {
         // Every shard scans the same space and computes the same partition.
         if (!opt.chunkNames.empty()) return makeError(ErrorKind::BadInput, "", 0, "--shard bakes a part of the whole space: not with --chunk");
-        targets = partitionChunks(source, opt.shardCount)[size_t(opt.shardIndex - 1)];
+        targets = source.isPlanned() ? plannedTargets : partitionChunks(source, opt.shardCount)[size_t(opt.shardIndex - 1)];
         results::ShardRecord sh;
         sh.index = opt.shardIndex, sh.count = opt.shardCount;
         sh.inputs = hexHash(spaceInputHash(source, opt));
-        sh.spaceChunks = source.chunks().size();
+        sh.spaceChunks = source.outline().chunks;
         for (ChunkCoord c : targets) sh.assigned.push_back(chunkFileName(c));
         sh.spaceWarnings = source.diagnostics().size();
         result.shard = std::move(sh);
     }
     return targets;
+}
+
+// A planned shard knows the rest of the space's inputs (every chunk file and resource)
+// from its plan, read only when one of its outputs exists: an output that does not exist
+// cannot be an input, and the list grows with the world.
+Status completeInputs(const BakeOptions& opt, SpaceSource& source, const std::vector<ChunkCoord>& targets) {
+    if (!source.isPlanned()) return Status::ok();
+    std::error_code ec;
+    bool exists = !opt.resultsPath.empty() && fs::exists(opt.resultsPath, ec);
+    if (!opt.outDir.empty())
+        for (size_t k = 0; k < targets.size() && !exists; ++k)
+            exists = fs::exists(fs::path(opt.outDir) / fs::path(source.chunks().at(targets[k]).path).filename(), ec);
+    return exists ? source.readOtherInputs() : Status::ok();
 }
 
 // The chunk loop of one bake: each chunk's window entered (the chunks it needs loaded),
@@ -521,14 +548,15 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     // --chunk: the original method reads those chunks and their neighbours; the analytic
     // bake the whole space, since their shadows may land anywhere (core/window_plan.h).
     const bool scanOnly = !opt.chunkNames.empty() && !wholeSpaceWindows(opt);
-    Expected<SpaceSource> scanned = SpaceSource::scan(opt.spaceDir, opt.resourceRoot, scanOnly ? &*only : nullptr, opt.onScanned);
+    std::vector<ChunkCoord> plannedTargets;
+    Expected<SpaceSource> scanned = openSpace(opt, scanOnly ? &*only : nullptr, plannedTargets);
     if (!scanned) return scanned.error();
     SpaceSource& source = *scanned;
     BakeResult result;
     result.settings = source.settings();
     result.diagnostics = source.diagnostics();
     result.totals = BakeTotals(result.settings.lights.size());
-    Expected<std::vector<ChunkCoord>> chosen = chunksToBake(opt, source, *only, result);
+    Expected<std::vector<ChunkCoord>> chosen = chunksToBake(opt, source, *only, plannedTargets, result);
     if (!chosen) return chosen.error();
     std::vector<ChunkCoord>& targets = *chosen;
     result.loadSeconds = secondsSince(t0);
@@ -536,6 +564,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     if (Status i = interrupted(); !i) return i.error();
 
     // 3. Outputs: never an input, and every one writable before any work is done.
+    if (Status s = completeInputs(opt, source, targets); !s) return s.error();
     result.inputFiles = source.inputFiles();
     BakeFiles files(opt, result, committed);
     if (Status s = files.prepare(source, targets); !s) return s.error();
@@ -549,7 +578,7 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     Space space;
     space.settings = source.settings();
     TerrainMeshes terrainMeshes;
-    const WindowPlanner planner(source.settings(), source.chunks(), wholeSpaceWindows(opt));
+    const WindowPlanner planner(source.settings(), source.chunks(), wholeSpaceWindows(opt), source.outline().bounds);
     WindowSequence windows(source, targets, planner);
     if (Status i = interrupted(); !i) return i.error();  // the sequence may be incomplete
     if (Status s = files.open(); !s) return s.error();

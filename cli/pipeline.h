@@ -32,6 +32,7 @@ enum ExitCode : int {
     kExitIo = 4,            // writing failed; files are either original or complete
     kExitInternal = 5,      // a library failed; nothing written
     kExitBusy = 6,          // another bake holds the output directory's lock; nothing done
+    kExitStalePlan = 9,     // --plan: the space changed since `shadowcull plan` (7 and 8 are merge's)
     kExitInterrupted = 130,  // Ctrl-C (128 + SIGINT; SIGTERM gives 143): temporary files removed
 };
 
@@ -74,6 +75,9 @@ struct BakeOptions {
     // bake --shard K/N (cli/shard.h): bake only the K-th of N parts of the space (K from
     // 1), with its own lock, resume state and results. 0: the whole space.
     int shardIndex = 0, shardCount = 0;
+    // bake --shard K/N --plan DIR (cli/plan.h): the shard's chunks and the summaries of its
+    // windows come from the plan, and only the chunks its windows hold are read.
+    std::string planDir;
     // Keep every baked chunk's verdicts in BakeResult::chunks (tests, sweep, check). The CLI's
     // bake keeps none: it counts them (BakeResult::totals) and streams the chunk files and
     // the results, so that its memory follows the window and not the world.

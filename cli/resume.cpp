@@ -60,13 +60,10 @@ uint64_t spaceInputHash(const SpaceSource& space, const BakeOptions& opt) {
     Hasher h;
     hashSettings(h, space.settings(), opt);
     h.str(space.settings().spaceDir);  // the results name it
-    h.pod(uint64_t(space.chunks().size()));
-    for (const auto& [coord, e] : space.chunks()) {
-        h.pod(uint8_t(1)).pod(e.objectsHash);
-        // The text each shard rewrites, without the masks: the bake's output, which shards
-        // baked in place one after another have partly written before the next one reads.
-        h.pod(e.contentWithoutShadowsHash);
-    }
+    // Every chunk's objects and its text without the masks (SpaceOutline::contentHash): the
+    // masks are the bake's output, which shards baked in place one after another have
+    // partly written before the next one reads. The same from a scan and from a plan.
+    h.pod(uint64_t(space.outline().chunks)).pod(space.outline().contentHash);
     return h.value();
 }
 

@@ -132,8 +132,9 @@ CLI::Validator existingPath() {
 const char* const kBakeExitCodes =
     "Exit codes: 0 baked; 1 baked, but some input was skipped or a chunk file not written (warnings name file\n"
     "and line); 2 usage error; 3 bad input (stopped, nothing written); 4 I/O error; 5 internal error (Embree,\n"
-    "CGAL, OpenGL); 6 another bake holds the output directory's lock; 130 interrupted by Ctrl-C, 143 by SIGTERM\n"
-    "(the bake's temporary files removed, no chunk file changed unless --resume had committed some).\n";
+    "CGAL, OpenGL); 6 another bake holds the output directory's lock; 9 --plan: the space changed since the plan\n"
+    "was made (plan again); 130 interrupted by Ctrl-C, 143 by SIGTERM (the bake's temporary files removed, no\n"
+    "chunk file changed unless --resume had committed some).\n";
 const char* const kCheckExitCodes =
     "Exit codes: 0 no GPU false cull; 1 the GPU method culled a bit that has a witness; 2 usage error; 3 bad\n"
     "input; 4 a picture cannot be written; 5 no OpenGL context, or a library failed.\n";
@@ -153,6 +154,10 @@ const char* const kMergeExitCodes =
     "Exit codes: 0 merged; 2 usage error; 3 a file is unreadable, malformed or not a shard's results; 4 OUT cannot\n"
     "be written; 7 the shards are of different bakes (inputs, options, space or shard count); 8 a shard or chunk\n"
     "is missing or given twice. Nothing is written unless the exit code is 0.\n";
+const char* const kPlanExitCodes =
+    "Exit codes: 0 written; 1 written, but reading the space gave warnings (the plan carries them to the shards);\n"
+    "2 usage error; 3 bad input (nothing written); 4 the plan cannot be written; 130 interrupted by Ctrl-C, 143\n"
+    "by SIGTERM.\n";
 const char* const kPreviewExitCodes =
     "Exit codes: 0 no false cull shows; 1 a shadow the engine draws is missing (a false cull, named); 2 usage\n"
     "error; 3 bad input; 4 a file cannot be written; 5 internal error (Embree, CGAL, OpenGL).\n";

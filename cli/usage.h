@@ -31,6 +31,7 @@ extern const char* const kImportExitCodes;
 extern const char* const kExportExitCodes;
 extern const char* const kSavingsExitCodes;  // report
 extern const char* const kMergeExitCodes;
+extern const char* const kPlanExitCodes;
 extern const char* const kReportExitCodes;  // explain, render, sweep
 extern const char* const kPreviewExitCodes;
 extern const char* const kTopFooter;

@@ -65,20 +65,33 @@ int ringsOutside(ChunkCoord c, ChunkCoord centre, const Neighbours& n) {
 
 }  // namespace
 
-WindowPlanner::WindowPlanner(const SpaceSettings& settings, const std::map<ChunkCoord, ChunkEntry>& chunks, bool wholeSpace)
-    : settings_(settings), chunks_(chunks), wholeSpace_(wholeSpace) {
+SpaceBounds spaceBoundsOf(const SpaceSettings& settings, const std::map<ChunkCoord, ChunkEntry>& chunks) {
     const double S = settings.chunkSize;
+    SpaceBounds b;
+    for (const auto& [c, e] : chunks) {
+        if (e.wsBounds.empty()) continue;
+        b.wsSpace.extend(e.wsBounds);
+        // How far the content leaves the chunk's square (objects may be placed past it).
+        const double x0 = double(c.x) * S, z0 = double(c.z) * S;
+        b.overhang = std::max({b.overhang, x0 - e.wsBounds.min.x, e.wsBounds.max.x - (x0 + S), z0 - e.wsBounds.min.z,
+                               e.wsBounds.max.z - (z0 + S)});
+    }
+    return b;
+}
+
+WindowPlanner::WindowPlanner(const SpaceSettings& settings, const std::map<ChunkCoord, ChunkEntry>& chunks, bool wholeSpace)
+    : WindowPlanner(settings, chunks, wholeSpace, spaceBoundsOf(settings, chunks)) {}
+
+WindowPlanner::WindowPlanner(const SpaceSettings& settings, const std::map<ChunkCoord, ChunkEntry>& chunks, bool wholeSpace,
+                             const SpaceBounds& bounds)
+    : settings_(settings), chunks_(chunks), wholeSpace_(wholeSpace), wsSpace_(bounds.wsSpace), overhang_(bounds.overhang) {
+    // The grid's extent only bounds the loops over squares (forChunksNear): the chunks held
+    // are enough for it.
     bool first = true;
     for (const auto& [c, e] : chunks) {
         gx0_ = first ? c.x : std::min(gx0_, c.x), gx1_ = first ? c.x : std::max(gx1_, c.x);
         gz0_ = first ? c.z : std::min(gz0_, c.z), gz1_ = first ? c.z : std::max(gz1_, c.z);
         first = false;
-        if (e.wsBounds.empty()) continue;
-        wsSpace_.extend(e.wsBounds);
-        // How far the content leaves the chunk's square (objects may be placed past it).
-        const double x0 = double(c.x) * S, z0 = double(c.z) * S;
-        overhang_ = std::max({overhang_, x0 - e.wsBounds.min.x, e.wsBounds.max.x - (x0 + S), z0 - e.wsBounds.min.z,
-                              e.wsBounds.max.z - (z0 + S)});
     }
 }
 

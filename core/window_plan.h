@@ -84,11 +84,28 @@ struct ReachTotals {
     }
 };
 
+// What planning a window needs to know of the whole space besides the chunks near it: a
+// shard given a plan (shadowcull plan) holds the summaries of only the chunks its windows
+// reach, and plans its windows with the whole space's bounds, as a full scan would.
+struct SpaceBounds {
+    Aabb wsSpace;          // every chunk's box (metres, world space)
+    double overhang = 0;   // how far (metres, x or z) any chunk's box leaves its square
+    bool operator==(const SpaceBounds& o) const {
+        return wsSpace.min == o.wsSpace.min && wsSpace.max == o.wsSpace.max && overhang == o.overhang;
+    }
+};
+SpaceBounds spaceBoundsOf(const SpaceSettings& settings, const std::map<ChunkCoord, ChunkEntry>& chunks);
+
 class WindowPlanner {
 public:
     // `wholeSpace` false: every window is the `neighbours` rectangle (the original method).
     // `chunks`: the scan's summaries (SpaceSource::chunks()); they must outlive the planner.
     WindowPlanner(const SpaceSettings& settings, const std::map<ChunkCoord, ChunkEntry>& chunks, bool wholeSpace);
+    // The same with the whole space's bounds given: `chunks` may then be only those the
+    // windows planned reach (and their rectangles), and plan() says what it would say on
+    // every chunk of the space.
+    WindowPlanner(const SpaceSettings& settings, const std::map<ChunkCoord, ChunkEntry>& chunks, bool wholeSpace,
+                  const SpaceBounds& bounds);
     WindowPlan plan(ChunkCoord centre) const;
     bool wholeSpace() const { return wholeSpace_; }
 
@@ -103,7 +120,7 @@ private:
     const SpaceSettings& settings_;
     const std::map<ChunkCoord, ChunkEntry>& chunks_;
     bool wholeSpace_ = true;
-    Aabb wsSpace_;          // every chunk's box
+    Aabb wsSpace_;          // every chunk's box (SpaceBounds)
     double overhang_ = 0;   // how far (metres, x or z) any chunk's box leaves its square
     int gx0_ = 0, gx1_ = -1, gz0_ = 0, gz1_ = -1;  // the grid's extent, chunk coordinates
 };

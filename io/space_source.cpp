@@ -2,11 +2,15 @@
 
 #include "io/space_source.h"
 
+#include <dirent.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <set>
 #include <unordered_map>
 
@@ -17,6 +21,7 @@
 
 #include "core/limits.h"
 #include "core/window_plan.h"
+#include "io/file_read.h"
 #include "io/scene_reader.h"
 #include "util/format.h"
 #include "util/hash.h"
@@ -107,6 +112,47 @@ ResourceSummary summarize(const Heightfield& hf) {
     }
     s.sourceFiles = hf.sourceFiles;
     return s;
+}
+
+// The names of the space directory's *.chunk files, sorted (the order loadSpace reads
+// them). Plain readdir: a shard given a plan lists a world's names at every start, and
+// building a filesystem::path per entry was most of that.
+Expected<std::vector<std::string>> chunkFileNamesIn(const std::string& spaceDir) {
+    std::unique_ptr<DIR, int (*)(DIR*)> dir(::opendir(spaceDir.c_str()), ::closedir);
+    if (!dir) return makeError(ErrorKind::BadInput, spaceDir, 0, std::string("cannot list the space directory: ") + std::strerror(errno));
+    std::vector<std::string> names;
+    static constexpr std::string_view kExtension = ".chunk";
+    errno = 0;
+    while (const dirent* entry = ::readdir(dir.get())) {
+        const std::string_view name = entry->d_name;
+        // As filesystem::path::extension(): a name that is only ".chunk" has none.
+        if (name.size() > kExtension.size() && name.substr(name.size() - kExtension.size()) == kExtension)
+            names.emplace_back(name);
+    }
+    if (errno != 0) return makeError(ErrorKind::BadInput, spaceDir, 0, std::string("cannot list the space directory: ") + std::strerror(errno));
+    std::sort(names.begin(), names.end());
+    return names;
+}
+
+uint64_t listingHashOf(const std::vector<std::string>& names) {
+    Hasher h;
+    h.pod(uint64_t(names.size()));
+    for (const std::string& name : names) h.str(name);
+    return h.value();
+}
+
+// space.xml's bytes and the resource root the bake resolved from it (and --res).
+Expected<uint64_t> settingsHashOf(const SpaceSettings& S) {
+    Expected<std::string> xml = readRegularFile((fs::path(S.spaceDir) / "space.xml").string(), "space.xml", ErrorKind::BadInput);
+    if (!xml) return xml.error();
+    return Hasher().str(*xml).str(S.resourceRoot).value();
+}
+
+uint64_t contentHashOf(const std::map<ChunkCoord, ChunkEntry>& chunks) {
+    Hasher h;
+    h.pod(uint64_t(chunks.size()));
+    for (const auto& [coord, e] : chunks) h.pod(coord).pod(e.objectsHash).pod(e.contentWithoutShadowsHash);
+    return h.value();
 }
 
 }  // namespace
@@ -282,12 +328,10 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
             for (int dx = -S.neighbours.left; dx <= S.neighbours.right; ++dx)
                 for (int dz = -S.neighbours.bottom; dz <= S.neighbours.top; ++dz) wanted.insert({c.x + dx, c.z + dz});
     }
-    std::error_code ec;
+    Expected<std::vector<std::string>> listed = chunkFileNamesIn(spaceDir);
+    if (!listed) return listed.error();
     std::vector<fs::path> files;
-    for (const fs::directory_entry& de : fs::directory_iterator(spaceDir, ec))
-        if (de.path().extension() == ".chunk") files.push_back(de.path());
-    if (ec) return makeError(ErrorKind::BadInput, spaceDir, 0, "cannot list the space directory: " + ec.message());
-    std::sort(files.begin(), files.end());
+    for (const std::string& name : *listed) files.push_back(fs::path(spaceDir) / name);
     if (files.empty())
         return bad(spaceDir, 0, "the space has a space.xml but no chunk files (XXXXZZZZo.chunk beside it): nothing to bake");
     // Each chunk with its position in file-name order (the order warnings and errors of
@@ -346,20 +390,7 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
         for (const ChunkObject& o : cf->objects)
             if (!o.resource.empty()) namedResources.insert(src.fullPath(o.resource));
         if (Status s = src.resolve(*cf, keep != nullptr, resourceWarnings); !s) return s.error();
-        ChunkEntry entry{path, cf->contentHash, cf->contentWithoutShadowsHash, 0, 0, {}};
-        Hasher h;
-        h.pod(coord);
-        for (const ChunkObject& o : cf->objects) {
-            entry.usableObjects += o.skipped ? 0 : 1;
-            h.pod(o.kind).pod(o.elementIndex).str(o.resource).str(o.uuid).pod(o.castsShadow).pod(o.skipped);
-            for (const glm::dvec3& r : o.transform.rows) h.vec(r);
-            if (o.skipped) continue;
-            const ResourceSummary& rs = *src.resource(o);
-            h.pod(rs.contentHash);
-            if (rs.hasVertices) entry.wsBounds.extend(wsObjectBounds(rs, o, coord, S.chunkSize));
-        }
-        entry.objectsHash = h.value();
-        src.chunks_.emplace(coord, std::move(entry));
+        src.chunks_.emplace(coord, src.entryOf(*cf, coord));
         if (keep) {
             keep->chunks.emplace(coord, std::move(*cf));
         } else {
@@ -385,7 +416,87 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
     for (const auto& [coord, e] : src.chunks_) inputs.insert(e.path);
     inputs.insert(namedResources.begin(), namedResources.end());
     src.inputFiles_ = std::move(inputs);
+    Expected<uint64_t> settingsHash = settingsHashOf(S);
+    if (!settingsHash) return settingsHash.error();
+    src.outline_ = {src.chunks_.size(), contentHashOf(src.chunks_), listingHashOf(*listed), *settingsHash,
+                    spaceBoundsOf(S, src.chunks_)};
     return src;
+}
+
+ChunkEntry SpaceSource::entryOf(const ChunkFile& cf, ChunkCoord coord) const {
+    ChunkEntry entry{cf.path, cf.contentHash, cf.contentWithoutShadowsHash, 0, 0, {}};
+    Hasher h;
+    h.pod(coord);
+    for (const ChunkObject& o : cf.objects) {
+        entry.usableObjects += o.skipped ? 0 : 1;
+        h.pod(o.kind).pod(o.elementIndex).str(o.resource).str(o.uuid).pod(o.castsShadow).pod(o.skipped);
+        for (const glm::dvec3& r : o.transform.rows) h.vec(r);
+        if (o.skipped) continue;
+        const ResourceSummary& rs = *resource(o);
+        h.pod(rs.contentHash);
+        if (rs.hasVertices) entry.wsBounds.extend(wsObjectBounds(rs, o, coord, settings_.chunkSize));
+    }
+    entry.objectsHash = h.value();
+    return entry;
+}
+
+Expected<SpaceSource> SpaceSource::planned(const std::string& spaceDir, const std::string& resourceRootOverride,
+                                           PlannedSpace plan) {
+    // What the shard reads of the whole space: space.xml and the directory's names. Both
+    // must be as the plan saw them; the chunks are checked as they are loaded.
+    auto stale = [&](const std::string& file, const std::string& what) {
+        return makeError(ErrorKind::StalePlan, file, 0,
+                         what + " since the plan was made: plan again (shadowcull plan), then bake the shards");
+    };
+    std::error_code ec;
+    if (!fs::equivalent(plan.spaceDir, spaceDir, ec))
+        return makeError(ErrorKind::BadInput, spaceDir, 0, "the plan is of another space (" + plan.spaceDir + ")");
+    SpaceSource src;
+    Expected<SpaceSettings> st = readSpaceSettings(spaceDir, resourceRootOverride);
+    if (!st) return st.error();
+    src.settings_ = std::move(*st);
+    Expected<uint64_t> settingsHash = settingsHashOf(src.settings_);
+    if (!settingsHash) return settingsHash.error();
+    const std::string spaceXml = (fs::path(src.settings_.spaceDir) / "space.xml").string();
+    if (*settingsHash != plan.outline.settingsHash)
+        return stale(spaceXml, "space.xml, or the resource root (--res), changed");
+    Expected<std::vector<std::string>> files = chunkFileNamesIn(spaceDir);
+    if (!files) return files.error();
+    if (listingHashOf(*files) != plan.outline.listingHash) return stale(spaceDir, "chunk files were added, removed or renamed");
+    src.planned_ = true;
+    src.outline_ = plan.outline;
+    src.diagnostics_ = std::move(plan.diagnostics);
+    src.chunks_ = std::move(plan.chunks);
+    src.listed_ = std::move(*files);
+    src.otherInputs_ = std::move(plan.otherInputs);
+    src.inputFiles_.insert(spaceXml);
+    for (auto& [coord, e] : src.chunks_) {
+        // The file the shard's own listing names (the space as this shard was given it).
+        e.path = (fs::path(spaceDir) / fs::path(e.path).filename()).string();
+        src.inputFiles_.insert(e.path);
+    }
+    return src;
+}
+
+Status SpaceSource::readOtherInputs() {
+    if (!planned_ || !otherInputs_) return Status::ok();
+    Expected<std::vector<std::string>> others = otherInputs_();
+    if (!others) return others.error();
+    inputFiles_.insert(others->begin(), others->end());
+    for (const std::string& name : listed_)
+        if (parseChunkName(name)) inputFiles_.insert((fs::path(settings_.spaceDir) / name).string());
+    otherInputs_ = nullptr;
+    return Status::ok();
+}
+
+Status SpaceSource::checkAgainstPlan(ChunkCoord c, const ChunkFile& cf) {
+    const ChunkEntry& fromPlan = chunks_.at(c);
+    const ChunkEntry now = entryOf(cf, c);
+    if (now.objectsHash != fromPlan.objectsHash || now.contentWithoutShadowsHash != fromPlan.contentWithoutShadowsHash)
+        return makeError(ErrorKind::StalePlan, cf.path, 0,
+                         "changed since the plan was made (its objects, their resources, or its text apart from the "
+                         "masks): plan again (shadowcull plan), then bake the shards");
+    return Status::ok();
 }
 
 Expected<SpaceSource> SpaceSource::scan(const std::string& spaceDir, const std::string& resourceRootOverride,
@@ -403,16 +514,22 @@ std::vector<std::string> SpaceSource::inputFiles() const {
 Status SpaceSource::load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
     // A window of large chunks takes seconds to load: a signal stops it between them.
     if (Status s = stopStatus(); !s) return s;
-    const ChunkEntry& entry = chunks_.at(c);
-    std::vector<Diagnostic> ignored;  // the scan gave these
+    ChunkEntry& entry = chunks_.at(c);
+    std::vector<Diagnostic> ignored;  // the scan (or the plan) gave these
     Expected<ChunkFile> cf = readChunkFile(entry.path, c, ignored);
     if (!cf) return cf.error();
+    // A planned source's first load stands for the scan: the plan's summary is checked
+    // below, and these bytes are what a later load and the write compare with.
+    const bool firstPlannedLoad = planned_ && loadedOnce_.insert(c).second;
+    if (firstPlannedLoad) entry.contentHash = cf->contentHash;
     const bool edited = cf->contentHash != entry.contentHash;
     // The bake writes a chunk only while it holds the bytes the scan read: an edit made
     // since is kept (the bake refuses the chunk with a warning), whatever it now says.
     cf->contentHash = entry.contentHash;
     std::vector<Diagnostic> warnings;
     if (Status s = resolve(*cf, true, warnings); !s) return s;
+    if (firstPlannedLoad)
+        if (Status s = checkAgainstPlan(c, *cf); !s) return s;
     if (edited) lateDiagnostics.insert(lateDiagnostics.end(), warnings.begin(), warnings.end());
     space.chunks[c] = std::move(*cf);
     return Status::ok();

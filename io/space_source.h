@@ -45,6 +45,30 @@ struct ResourceSummary {
 };
 
 
+// What a shard needs to know of the whole space beyond the chunks its windows read: a full
+// scan learns it, a plan (io/shard_plan.h) carries it to the shards.
+struct SpaceOutline {
+    size_t chunks = 0;          // chunk files of the space
+    // Every chunk's objectsHash and contentWithoutShadowsHash, in grid order: what the
+    // shards of one bake must agree on (cli/resume.cpp's spaceInputHash).
+    uint64_t contentHash = 0;
+    uint64_t listingHash = 0;   // the names of the space directory's *.chunk files, sorted
+    uint64_t settingsHash = 0;  // space.xml's bytes and the resource root the bake uses
+    SpaceBounds bounds;         // for planning windows (core/window_plan.h)
+};
+
+// What a plan gives one shard (io/shard_plan.h): the whole space's outline, warnings and
+// inputs, and the summaries of the chunks its windows hold.
+struct PlannedSpace {
+    std::string spaceDir;  // as the plan was given it (its warnings name files under it)
+    SpaceOutline outline;
+    std::vector<Diagnostic> diagnostics;      // every warning of reading the space, in loadSpace's order
+    std::map<ChunkCoord, ChunkEntry> chunks;  // those the shard's windows hold (contentHash unset)
+    // Every input besides space.xml and the chunk files, read from the plan when asked
+    // (SpaceSource::readOtherInputs).
+    std::function<Expected<std::vector<std::string>>()> otherInputs;
+};
+
 // Called by the scan before the first chunk file (0 of `total`) and after each one.
 using ScanProgress = std::function<void(size_t scanned, size_t total)>;
 
@@ -57,13 +81,30 @@ public:
     static Expected<SpaceSource> scan(const std::string& spaceDir, const std::string& resourceRootOverride,
                                       const std::vector<ChunkCoord>* only = nullptr, const ScanProgress& progress = {});
 
+    // A shard's source from its plan: space.xml is read again and, with the names of the
+    // chunk files, checked against the plan (a StalePlan error if they changed); every chunk
+    // is checked when it is loaded (load()). Nothing else of the space is read.
+    static Expected<SpaceSource> planned(const std::string& spaceDir, const std::string& resourceRootOverride,
+                                         PlannedSpace plan);
+
     const SpaceSettings& settings() const { return settings_; }
+    // The whole space's outline (from the scan, or the plan).
+    const SpaceOutline& outline() const { return outline_; }
+    // Whether this source came from a plan: chunks() then holds only the chunks the shard's
+    // windows need, and outline() speaks for the others.
+    bool isPlanned() const { return planned_; }
     // Every warning of reading the space, exactly as loadSpace gives them.
     const std::vector<Diagnostic>& diagnostics() const { return diagnostics_; }
     // The chunks scanned, in grid order.
     const std::map<ChunkCoord, ChunkEntry>& chunks() const { return chunks_; }
     // Every file the space was read from, sorted (Space::inputFiles of the whole space).
+    // Planned: space.xml, the chunks of the shard's windows and what they use, until
+    // readOtherInputs() adds every other chunk file and resource of the space.
     std::vector<std::string> inputFiles() const;
+    // Planned: adds the rest of the space's inputs (the listed chunk files, the plan's list
+    // of resources) to inputFiles(). A bake asks only when one of its outputs exists, since
+    // an output that does not exist cannot be an input.
+    Status readOtherInputs();
     // The resource an object names, as the scan found it; null when it names none the scan
     // read (an object skipped before its resource was looked at).
     const ResourceSummary* resource(const ChunkObject& object) const;
@@ -74,7 +115,9 @@ public:
     // edited since is never written by the bake (its text no longer has that hash). A
     // resource that no longer loads, or loads different content, is an Io error: the scan's
     // verdict on it would no longer hold. `lateDiagnostics` gets the warnings about objects
-    // an edit since the scan added. A stop request (util/stop_request.h) is an Interrupted
+    // an edit since the scan added. From a plan: a chunk whose objects, resources or text
+    // (its masks apart) differ from the plan's is a StalePlan error; the bytes of its first
+    // load stand for the scan's. A stop request (util/stop_request.h) is an Interrupted
     // error before anything is read.
     Status load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics);
     // Drops chunk `c` from `space.chunks`, then the meshes and heightfields no loaded chunk
@@ -98,9 +141,18 @@ private:
     // gives them; `attach` also attaches the meshes (loading what is not live).
     Status resolve(ChunkFile& cf, bool attach, std::vector<Diagnostic>& diagnostics);
     std::string keyOf(const ChunkObject& object) const;
+    // The summary of a chunk file read and resolved (skipped flags set).
+    ChunkEntry entryOf(const ChunkFile& cf, ChunkCoord coord) const;
+    // A planned source's check of a chunk it loads against the plan's summary.
+    Status checkAgainstPlan(ChunkCoord c, const ChunkFile& cf);
     const std::string& fullPath(const std::string& resource) const;  // resource root / resource, normalised
 
     SpaceSettings settings_;
+    SpaceOutline outline_;
+    bool planned_ = false;
+    std::set<ChunkCoord> loadedOnce_;  // planned: the chunks loaded so far (their contentHash set)
+    std::vector<std::string> listed_;  // planned: the names of the space's *.chunk files
+    std::function<Expected<std::vector<std::string>>()> otherInputs_;  // planned (PlannedSpace)
     std::map<ChunkCoord, ChunkEntry> chunks_;
     std::vector<Diagnostic> diagnostics_;
     std::set<std::string> inputFiles_;  // space.xml, the chunk files, every resource named

@@ -15,6 +15,7 @@ enum class ErrorKind {
     Io,               // writing failed (exit 4)
     Internal,         // a library (Embree, CGAL, GL) failed (exit 5)
     Busy,             // another process holds the lock on what this one would write (exit 6)
+    StalePlan,        // a shard's plan (shadowcull plan) no longer matches the space (exit 9)
     Interrupted,      // SIGINT or SIGTERM: stopped, temporary files removed (exit 128 + signal)
 };
 

@@ -157,7 +157,7 @@ bake_args="--stages raycast,geometry --samples 16"
 "$bin/shadowcull" bake "$space" --out "$tmp/whole" --results "$tmp/whole.json" --quiet $bake_args --threads 2
 echo "single-process bake done: $(ls "$tmp/whole" | grep -c '\.chunk$') chunk files"
 
-# 5. The farm: 4 shards and the merge, through submit.sh.
+# 5. The farm: the plan, 4 shards and the merge, through submit.sh.
 out="$(SHADOWCULL="$bin/shadowcull" SHADOWCULL_OUT="$tmp/sharded" SHADOWCULL_BAKE_ARGS="$bake_args" \
   "$root/scripts/slurm/submit.sh" "$space" 4 "$tmp/farm")"
 echo "$out"
@@ -175,6 +175,9 @@ echo "merge job $merge_id: $merge_state"
 [ "$merge_state" = "COMPLETED" ] || { echo "FAIL: the merge job ended $merge_state"; exit 1; }
 shards_done="$(scontrol show job "$bake_id" | grep -c 'JobState=COMPLETED' || true)"
 [ "$shards_done" -eq 4 ] || { echo "FAIL: $shards_done of 4 array tasks completed"; exit 1; }
+# The shards read the plan the plan job wrote, not the whole space.
+[ -f "$tmp/farm/plan/plan.json" ] && [ -f "$tmp/farm/plan/shard-4-of-4.json" ] || { echo "FAIL: no plan in $tmp/farm/plan"; exit 1; }
+grep -q -- "--plan $tmp/farm/plan" "$tmp"/farm/logs/bake-*_1.log || { echo "FAIL: shard 1 did not bake from the plan"; cat "$tmp"/farm/logs/bake-*_1.log; exit 1; }
 
 # 6. Byte for byte.
 cmp "$tmp/whole.json" "$tmp/farm/results.json" || { echo "FAIL: merged results differ from the single bake's"; exit 1; }
