@@ -138,7 +138,7 @@ Expected<bool> LayoutReader::readChunk(bool& more) {
     if (parts_.begin)
         if (Status s = parts_.begin(*name); !s) return s.error();
 
-    // 2. Its objects, each read alone; the line that closes them stays, emptied, in the rest.
+    // 2. Its objects, each read alone; in the rest of the chunk they stand as `"objects": []`.
     std::string objectsLine = kObjectsNone;
     if (!next()) return false;
     if (line_ == kObjectsOpen) {
