@@ -9,6 +9,7 @@
 #include "cli/report.h"
 #include "core/scene.h"
 #include "io/chunk_writer.h"
+#include "io/results_stream.h"
 #include "util/stop_request.h"
 
 namespace shadowcull::cli {
@@ -147,10 +148,12 @@ using Shard = std::pair<std::string, results::ResultsFile>;  // {path, file}, as
 // read whole (then `whole` is set).
 Expected<Shard> readShard(const std::string& path, bool& whole) {
     std::vector<results::ChunkRecord> names;
-    Expected<std::optional<results::ResultsFile>> streamed = results::streamResultsFile(path, [&](results::ChunkRecord& c) {
-        names.emplace_back().chunk = std::move(c.chunk);
+    results::ChunkParts parts;  // each object is read and checked, and dropped
+    parts.begin = [&](const std::string& chunk) {
+        names.emplace_back().chunk = chunk;
         return Status::ok();
-    });
+    };
+    Expected<std::optional<results::ResultsFile>> streamed = results::streamResultsFile(path, parts);
     whole = !(streamed && *streamed);
     if (!whole) {
         (*streamed)->chunks = std::move(names);
@@ -181,41 +184,68 @@ std::vector<const Shard*> runOrder(const std::vector<Shard>& shards) {
     return order;
 }
 
-// Writes the merged file chunk by chunk from the shards' files in `order` (one chunk in
-// memory at a time), counting the summary as it goes; `checked` is mergeShards' outcome on
-// the names (warnings, lights). The same bytes as writeResults of the merge in memory.
+// The merged file written as the shards' files are read, one object in memory at a time:
+// each chunk's opening, its objects and its close as they come, counted into the summary.
+class StreamedMerge {
+public:
+    StreamedMerge(StagedFile& out, const std::vector<results::LightRecord>& lights) : out_(out), builder_(lights) {}
+
+    // Appends the chunks of the shard's file at `path`; `names`: its chunks as the checks
+    // read them (anything else is a file changed since).
+    Status appendShard(const std::string& path, const std::vector<results::ChunkRecord>& names) {
+        size_t inShard = 0;
+        auto changed = [&] { return Status(makeError(ErrorKind::BadInput, path, 0, "changed while it was being merged")); };
+        results::ChunkParts parts;
+        parts.begin = [&](const std::string& chunk) {
+            if (inShard >= names.size() || chunk != names[inShard].chunk) return changed();
+            ++inShard;
+            objects_ = 0;
+            builder_.beginChunk();
+            return out_.append((chunks_++ == 0 ? "\n" : ",\n") + results::chunkOpenJson(chunk));
+        };
+        parts.object = [&](results::ObjectRecord& object) {
+            builder_.addObject(object);
+            return out_.append((objects_++ == 0 ? "\n" : ",\n") + results::chunkObjectJson(object));
+        };
+        parts.end = [&](results::ChunkRecord& rest) {
+            builder_.endChunk(rest);  // its savings, from its objects
+            return out_.append(results::chunkCloseJson(rest, objects_ > 0));
+        };
+        Expected<std::optional<results::ResultsFile>> again = results::streamResultsFile(path, parts);
+        if (!again) return again.error();
+        return *again && inShard == names.size() ? Status::ok() : changed();
+    }
+
+    size_t chunks() const { return chunks_; }
+    results::Summary summary() const { return builder_.summary(); }
+
+private:
+    StagedFile& out_;
+    ResultsBuilder builder_;
+    size_t chunks_ = 0;   // written, from every shard
+    size_t objects_ = 0;  // of the chunk being written
+};
+
+// Writes the merged file chunk by chunk from the shards' files in `order`; `checked` is
+// mergeShards' outcome on the names (warnings, lights). The same bytes as writeResults of
+// the merge in memory.
 Status writeStreamed(const std::string& outPath, const std::vector<const Shard*>& order, const MergeOutcome& checked,
                      size_t& chunks, uint64_t& bits) {
     Expected<StagedFile> outFile = StagedFile::open(outPath);
     if (!outFile) return outFile.error();
     const std::string temp = tempPathFor(outPath);
     const bool held = holdTemporary(temp.c_str());
-    ResultsBuilder builder(checked.merged.lights);
+    StreamedMerge merge(*outFile, checked.merged.lights);
     Status s = outFile->append(results::resultsHead());
-    chunks = 0;
-    for (const Shard* shard : order) {
-        if (!s) break;
-        const std::string& path = shard->first;
-        const std::vector<results::ChunkRecord>& names = shard->second.chunks;
-        size_t inShard = 0;
-        Expected<std::optional<results::ResultsFile>> again =
-            results::streamResultsFile(path, [&](results::ChunkRecord& c) {
-                if (inShard >= names.size() || c.chunk != names[inShard].chunk)
-                    return Status(makeError(ErrorKind::BadInput, path, 0, "changed while it was being merged"));
-                ++inShard;
-                builder.add(c);
-                return outFile->append((chunks++ == 0 ? "\n" : ",\n") + results::chunkJson(c));
-            });
-        if (!again) s = again.error();
-        else if (!*again || inShard != names.size())
-            s = makeError(ErrorKind::BadInput, path, 0, "changed while it was being merged");
-    }
+    for (const Shard* shard : order)
+        if (s) s = merge.appendShard(shard->first, shard->second.chunks);
     results::ResultsFile tail;
     tail.version = checked.merged.version;
     tail.space = checked.merged.space;
     tail.lights = checked.merged.lights;
     tail.warnings = checked.merged.warnings;
-    tail.summary = builder.summary();
+    tail.summary = merge.summary();
+    chunks = merge.chunks();
     bits = tail.summary.bits;
     if (s) s = outFile->append(results::resultsTail(tail, chunks > 0));
     if (s) s = outFile->sync();

@@ -1,6 +1,7 @@
 // shadowcull merge OUT.json SHARD_RESULTS...: the results files of the shards of one bake
 // (bake --shard K/N --results) joined into the file a single bake of the whole space with
-// the same options writes, byte for byte. Read and written by io/results_file.h only.
+// the same options writes, byte for byte. Read and written by io/results_file.h (and
+// io/results_stream.h, which reads a shard's file an object at a time) only.
 #pragma once
 
 #include <ostream>

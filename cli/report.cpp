@@ -184,11 +184,23 @@ results::Summary ResultsBuilder::summary() const {
 }
 
 void ResultsBuilder::add(results::ChunkRecord& chunk) {
-    // What the masks remove, per chunk and for the world: tallied from the records (the
-    // resumed chunks' too), as `merge` and `report` tally a file.
-    tally_.addChunk(chunk);
+    beginChunk();
+    for (const results::ObjectRecord& o : chunk.objects) addObject(o);
+    endChunk(chunk);
+}
+
+// What the masks remove, per chunk and for the world: tallied from the records (the resumed
+// chunks' too), as `merge` and `report` tally a file.
+void ResultsBuilder::beginChunk() { tally_.beginChunk(); }
+
+void ResultsBuilder::addObject(const results::ObjectRecord& object) {
+    tally_.addObject(object);
+    file_.summary.countObject(object);
+}
+
+void ResultsBuilder::endChunk(results::ChunkRecord& chunk) {
     chunk.savings = tally_.takeLastChunk();
-    file_.summary.count(chunk);
+    ++file_.summary.chunks;
 }
 
 results::ResultsFile ResultsBuilder::tail(const std::vector<Diagnostic>& diagnostics,

@@ -49,6 +49,12 @@ public:
     explicit ResultsBuilder(std::vector<results::LightRecord> lights);
     // Fills `chunk.savings` and counts it.
     void add(results::ChunkRecord& chunk);
+    // add() an object at a time, for a writer that holds one (merge): beginChunk(), then
+    // addObject() for each object of the chunk, then endChunk(chunk) with the chunk without
+    // its objects, which fills its savings and counts the chunk.
+    void beginChunk();
+    void addObject(const results::ObjectRecord& object);
+    void endChunk(results::ChunkRecord& chunk);
     // The counts and savings of the chunks added so far.
     results::Summary summary() const;
     // The file without its chunks (lights, summary, warnings, shard): what follows them.

@@ -59,10 +59,13 @@ void Tally::add(size_t light, Why why, std::string_view stage, uint64_t triangle
 
 void Tally::addChunk(const results::ChunkRecord& c) {
     beginChunk();
-    for (const results::ObjectRecord& o : c.objects)
-        for (const results::GroupRecord& g : o.groups)
-            for (const results::BitRecord& b : g.lights)
-                add(size_t(b.light - 1), classify(b.verdict, b.stage, b.reason), b.stage, g.triangles.value_or(0));
+    for (const results::ObjectRecord& o : c.objects) addObject(o);
+}
+
+void Tally::addObject(const results::ObjectRecord& o) {
+    for (const results::GroupRecord& g : o.groups)
+        for (const results::BitRecord& b : g.lights)
+            add(size_t(b.light - 1), classify(b.verdict, b.stage, b.reason), b.stage, g.triangles.value_or(0));
 }
 
 std::vector<LightSavingsRecord> Tally::takeLastChunk() {

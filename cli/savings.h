@@ -61,6 +61,8 @@ public:
     void add(size_t light, Why why, std::string_view stage, uint64_t triangles);
     // One chunk of a results file, from its groups' `triangles` (as tallyResults counts it).
     void addChunk(const results::ChunkRecord& chunk);
+    // One object of the chunk last begun (addChunk, an object at a time).
+    void addObject(const results::ObjectRecord& object);
     // The figures of the last chunk begun, removed from chunks() (a bake that streams its
     // results file keeps only the world's figures).
     std::vector<LightSavingsRecord> takeLastChunk();

@@ -1,10 +1,6 @@
 #include "io/results_file.h"
 
-#include <sys/stat.h>
-
 #include <algorithm>
-#include <fstream>
-#include <iterator>
 #include <limits>
 #include <set>
 
@@ -246,6 +242,11 @@ Error badInput(const std::string& path, int line, std::string message) {
     return makeError(ErrorKind::BadInput, path, line, std::move(message));
 }
 
+// Bad content at `where`, a JSON path ("chunks[0].objects[2].groups[1]").
+Error malformedAt(const std::string& path, const std::string& where, const std::string& message) {
+    return badInput(path, 0, "malformed results at " + where + ": " + message);
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
@@ -256,16 +257,31 @@ Error badInput(const std::string& path, int line, std::string message) {
 // stays valid JSON, and the bake does not die at its very end (nlohmann throws otherwise).
 std::string dumped(const json& j) { return j.dump(1, ' ', false, json::error_handler_t::replace); }
 
-std::string chunkJson(const ChunkRecord& chunk) {
+// A chunk sits two levels deep (in the top-level object's "chunks" array), its objects four
+// (in its "objects" array); its keys sort as "chunk", "objects", "savings", "simulated", so
+// the pieces below are nlohmann's dump of the whole chunk cut around its objects.
+std::string chunkOpenJson(const std::string& chunk) {
+    return "  {\n   \"chunk\": " + dumped(json(chunk)) + ",\n   \"objects\": [";
+}
+
+std::string chunkObjectJson(const ObjectRecord& object) { return indented(dumped(objectJson(object)), 4); }
+
+std::string chunkCloseJson(const ChunkRecord& chunk, bool anyObject) {
     json j;
-    j["chunk"] = chunk.chunk;
     j["simulated"] = chunk.simulated;
     if (!chunk.savings.empty()) j["savings"] = savingsJson(chunk.savings);
-    json objects = json::array();
-    for (const ObjectRecord& o : chunk.objects) objects.push_back(objectJson(o));
-    j["objects"] = std::move(objects);
-    // A chunk sits two levels deep: in the top-level object's "chunks" array.
-    return indented(dumped(j), 2);
+    // The keys after "objects" are this object's dump, as deep as the chunk, without its "  {\n".
+    const std::string rest = indented(dumped(j), 2);
+    return std::string(anyObject ? "\n   ]" : "]") + ",\n" + rest.substr(4);
+}
+
+std::string chunkJson(const ChunkRecord& chunk) {
+    std::string text = chunkOpenJson(chunk.chunk);
+    for (size_t k = 0; k < chunk.objects.size(); ++k) {
+        text += k == 0 ? "\n" : ",\n";
+        text += chunkObjectJson(chunk.objects[k]);
+    }
+    return text + chunkCloseJson(chunk, !chunk.objects.empty());
 }
 
 std::string resultsHead() { return "{\n \"chunks\": ["; }
@@ -310,21 +326,23 @@ std::string writeResults(const ResultsFile& file) {
 
 void Summary::count(const ChunkRecord& c) {
     ++chunks;
-    for (const ObjectRecord& o : c.objects) {
-        if (o.skipped) continue;
-        groups += o.groups.size();
-        for (const GroupRecord& g : o.groups)
-            for (const BitRecord& b : g.lights) {
-                ++bits;
-                if (b.verdict == "culled") {
-                    ++culled;
-                    ++culledBy[b.stage];
-                } else {
-                    ++kept;  // written 1: with a witness, or because nobody could decide
-                    ++(b.verdict == "kept" ? provedKept : undecided);
-                }
+    for (const ObjectRecord& o : c.objects) countObject(o);
+}
+
+void Summary::countObject(const ObjectRecord& o) {
+    if (o.skipped) return;
+    groups += o.groups.size();
+    for (const GroupRecord& g : o.groups)
+        for (const BitRecord& b : g.lights) {
+            ++bits;
+            if (b.verdict == "culled") {
+                ++culled;
+                ++culledBy[b.stage];
+            } else {
+                ++kept;  // written 1: with a witness, or because nobody could decide
+                ++(b.verdict == "kept" ? provedKept : undecided);
             }
-    }
+        }
 }
 
 Summary summarize(const std::vector<ChunkRecord>& chunks) {
@@ -434,61 +452,23 @@ Expected<ResultsFile> parseResults(const std::string& path, const std::string& t
             f.summary = summarize(f.chunks);
         }
     } catch (const json::exception& e) {
-        return badInput(path, 0, "malformed results at " + where + ": " + jsonMessage(e));
+        return malformedAt(path, where, jsonMessage(e));
     } catch (const BadContent& e) {
-        return badInput(path, 0, "malformed results at " + where + ": " + e.message);
+        return malformedAt(path, where, e.message);
     }
     return f;
 }
 
-}  // namespace shadowcull::results
-
-namespace shadowcull::results {
-
-namespace {
-
-// The lines writeResults puts around and between the chunks (indent 1 for the top level's
-// keys, 2 for a chunk object's braces); JSON strings hold no raw newline, so lines are safe.
-constexpr const char* kChunksOpen = " \"chunks\": [";
-constexpr const char* kChunkOpen = "  {";
-constexpr const char* kChunkClose = "  }";
-constexpr const char* kChunkCloseMore = "  },";
-constexpr const char* kChunksClose = " ],";
-
-}  // namespace
-
-Expected<std::optional<ResultsFile>> streamResultsFile(const std::string& path, const ChunkVisitor& chunk) {
-    const std::optional<ResultsFile> whole;  // "read it whole"
-    struct stat st {};
-    if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || uint64_t(st.st_size) > (uint64_t(1) << 32)) return whole;
-    std::ifstream in(path, std::ios::binary);
-    std::string line;
-    if (!in || !std::getline(in, line) || line != "{" || !std::getline(in, line) || line != kChunksOpen) return whole;
-    std::set<std::string> names;
-    std::string text;
-    for (bool more = true; more;) {
-        if (!std::getline(in, line) || line != kChunkOpen) return whole;
-        text = line;
-        while (true) {
-            if (!std::getline(in, line)) return whole;
-            if (line == kChunkClose || line == kChunkCloseMore) break;
-            text += "\n" + line;
-        }
-        text += "\n";
-        text += kChunkClose;
-        more = line == kChunkCloseMore;
-        // The name, as the whole-file reader checks it: a chunk given twice is its error.
-        Expected<ChunkRecord> record = parseChunkJson(path, text);
-        if (!record || !names.insert(record->chunk).second) return whole;
-        if (Status s = chunk(*record); !s) return s.error();
+Expected<ObjectRecord> parseObjectJson(const std::string& path, const std::string& text) {
+    const std::string at = "object";
+    std::string where = at;
+    try {
+        return readObject(json::parse(text), at, where);
+    } catch (const json::exception& e) {
+        return malformedAt(path, where, jsonMessage(e));
+    } catch (const BadContent& e) {
+        return malformedAt(path, where, e.message);
     }
-    // The rest: " ],", then the other keys; read as a file without chunks.
-    if (!std::getline(in, line) || line != kChunksClose) return whole;
-    std::string rest((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (in.bad()) return whole;
-    Expected<ResultsFile> f = parseResults(path, resultsHead() + "],\n" + rest);
-    if (!f) return whole;
-    return std::optional<ResultsFile>(std::move(*f));
 }
 
 }  // namespace shadowcull::results

@@ -6,7 +6,6 @@
 
 #include <array>
 #include <cstdint>
-#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -112,6 +111,8 @@ struct Summary {
 
     // Adds the bits of one more chunk (the counts above; not `savings`).
     void count(const ChunkRecord& chunk);
+    // Adds the bits of one object of a chunk (count() without the chunk's own count).
+    void countObject(const ObjectRecord& object);
 };
 
 // A shard's part of a bake (`bake --shard K/N`): what `merge` needs to check that the
@@ -161,32 +162,30 @@ Expected<ResultsFile> parseResults(const std::string& path, const std::string& t
 // Deterministic: the same model gives the same bytes.
 std::string writeResults(const ResultsFile& file);
 
-// Pieces of writeResults' text, for a later writer that streams one chunk at a time
-// instead of holding the whole model: "chunks" is the first key of the file (keys are
+// Pieces of writeResults' text, for a writer that streams one chunk (or one object) at a
+// time instead of holding the whole model: "chunks" is the first key of the file (keys are
 // sorted), so the file is resultsHead(), then per chunk "\n" (first) or ",\n" (others)
 // and chunkJson(chunk), then resultsTail(file, anyChunk) with the lights, summary and
 // warnings, which are only known at the end. writeResults is built exactly so.
 //
 // One chunk as it stands in the "chunks" array (indented for that depth, no separator):
 std::string chunkJson(const ChunkRecord& chunk);
+// chunkJson in pieces, and built exactly so: chunkOpenJson(chunk.chunk), then per object
+// "\n" (first) or ",\n" (others) and chunkObjectJson(object), then chunkCloseJson(chunk,
+// anyObject) with "simulated" and "savings" (the objects of `chunk` are not used).
+std::string chunkOpenJson(const std::string& chunk);
+std::string chunkObjectJson(const ObjectRecord& object);
+std::string chunkCloseJson(const ChunkRecord& chunk, bool anyObject);
 // One chunk back from chunkJson's text (kept by `bake --resume` for the chunks it skips),
 // read by the same reader as a whole file; `path` is only used in messages.
 Expected<ChunkRecord> parseChunkJson(const std::string& path, const std::string& text);
+// One object back from chunkObjectJson's text (or any JSON text of one object), read by the
+// whole-file reader's checks on an object; `path` is only used in messages.
+Expected<ObjectRecord> parseObjectJson(const std::string& path, const std::string& text);
 // The opening of the file and of the "chunks" array.
 std::string resultsHead();
 // Everything after the last chunk; `anyChunk`: whether a chunk was written (the chunks of
 // `file` are not used).
 std::string resultsTail(const ResultsFile& file, bool anyChunk);
-
-// Reads a results file in writeResults' layout one chunk at a time, for a reader whose
-// memory must not grow with the file (merge): `chunk` gets each chunk, read from its text
-// by parseChunkJson (the whole-file reader's checks), in file order; the result is the file without its chunks, read by
-// parseResults (so its summary is a file's without chunks unless it has one). std::nullopt
-// (no error) when the file is not laid out as the writer lays it out (edited by hand,
-// pretty-printed otherwise, no chunks, not a regular file or too large): read it whole
-// then (readResultsFile), which gives the same model or the error. An error that `chunk`
-// returns is returned as is. Checks "no chunk twice" as the whole-file reader does.
-using ChunkVisitor = std::function<Status(ChunkRecord& chunk)>;
-Expected<std::optional<ResultsFile>> streamResultsFile(const std::string& path, const ChunkVisitor& chunk);
 
 }  // namespace shadowcull::results

@@ -206,8 +206,15 @@ TEST(ResultsFile, WriterGivesTheLayoutOfOneDump) {
         const nlohmann::json& witness = objects.at(2).at("groups").at(0).at("lights").at(0).at("witness");
         EXPECT_EQ(witness.at("p").at(0).get<double>(), 1e-300);
         EXPECT_EQ(j.at("chunks").at(0).at("objects"), nlohmann::json::array());
-        // A chunk's piece is the text of that chunk inside the file.
+        // A chunk's piece is the text of that chunk inside the file, an object's of that object.
         EXPECT_NE(text.find(results::chunkJson(f.chunks[1])), std::string::npos);
+        for (const results::ObjectRecord& o : f.chunks[1].objects) {
+            const std::string piece = results::chunkObjectJson(o);
+            EXPECT_NE(text.find(piece), std::string::npos);
+            Expected<results::ObjectRecord> back = results::parseObjectJson("o.json", piece);
+            ASSERT_TRUE(back) << back.error().what();
+            EXPECT_EQ(results::chunkObjectJson(*back), piece);
+        }
         EXPECT_EQ(j.at("summary").at("bits"), 2);
         EXPECT_EQ(j.at("summary").at("provedKept"), 1);
         EXPECT_EQ(j.at("summary").at("undecided"), 1);
