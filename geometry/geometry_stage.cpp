@@ -254,7 +254,8 @@ public:
         // between a directional light and a reached part. The exhaustive reference uses the
         // same source, so the two stay comparable.
         if (!local_ && !(L_.filterRadius > 0))
-            occluders_.emplace([this](const std::array<glm::dvec3, 2>& box, std::vector<Triangle>& out) { findOccluders(box, out); });
+            occluders_.emplace(OccluderSource::Walk(
+                [this](const std::array<glm::dvec3, 2>& box, const OccluderSource::Visit& visit) { walkOccluders(box, visit); }));
     }
     ShadowSearch(const ShadowSearch&) = delete;
     ShadowSearch& operator=(const ShadowSearch&) = delete;
@@ -347,7 +348,7 @@ private:
     CasterResult walkCasterTree() const;
     CasterResult walkAllCasters() const;
     bool clusterMayCast(const Aabb& msBox, uint32_t items) const;
-    void findOccluders(const std::array<glm::dvec3, 2>& box, std::vector<Triangle>& out) const;
+    void walkOccluders(const std::array<glm::dvec3, 2>& box, const OccluderSource::Visit& visit) const;
 
     const WindowScene& scene_;
     const BakeWindow& window_;
@@ -524,10 +525,13 @@ CasterResult ShadowSearch::walkAllCasters() const {
 
 // The opaque triangles that may shade a reached part (box `box`): the column from the
 // part's box back towards the light, walked as a receiver column is (the light reversed).
-// The exact tests then drop a part one of them shades wholly (no caster point of it lit).
+// The exact tests then drop a part one of them shades wholly (no caster point of it lit):
+// each is handed to `visit` as it is found, and the walk ends at the first that shades.
+// The first kMaxOccluders in the walk's order are offered, whichever shades.
 // Buried parts of the objects are not in the tree's boxes: fewer occluders, never a wrong one.
-void ShadowSearch::findOccluders(const std::array<glm::dvec3, 2>& box, std::vector<Triangle>& out) const {
+void ShadowSearch::walkOccluders(const std::array<glm::dvec3, 2>& box, const OccluderSource::Visit& visit) const {
     constexpr size_t kMaxOccluders = 256;  // enough for a part a fraction of a cell wide
+    size_t offered = 0;
     LightGeometry back = lg_;
     back.direction = -lg_.direction;
     Light backLight = L_;
@@ -543,8 +547,8 @@ void ShadowSearch::findOccluders(const std::array<glm::dvec3, 2>& box, std::vect
                                 return TriangleTree(mesh).visit([&](const Aabb& b) { return mq.mayHold(b); },
                                                                 [&](uint32_t tri) {
                                                                     if (!o.blocksLight(mesh.triangleGroup[tri])) return false;
-                                                                    out.push_back(o.lsTriangle(tri));
-                                                                    return out.size() >= kMaxOccluders;
+                                                                    ++offered;
+                                                                    return visit(o.lsTriangle(tri)) || offered >= kMaxOccluders;
                                                                 });
                             });
 }
