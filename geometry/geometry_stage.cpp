@@ -294,6 +294,7 @@ public:
     const Light& light() const { return L_; }  // as tested (dilated)
     const Light& sceneLight() const { return window_.lsLights[size_t(light_)]; }  // as the scene gives it
     const LightGeometry& lightGeometry() const { return lg_; }
+    const ReceiverRules& rules() const { return rules_; }
     bool exhaustive() const { return exhaustive_; }
     bool local() const { return local_; }
     const OccluderSource* occluders() const { return occluders_ ? &*occluders_ : nullptr; }
@@ -401,14 +402,22 @@ private:
         // terrain, per window and light) are made only for triangles that may meet the
         // frustum (a terrain's columns reach a dense rock's ground line, thousands of
         // triangles per terrain triangle, most of them outside the column).
-        if (!search_.exhaustive() && filtersMiss(scene_.window.objects[k].lsTriangle(tri), leastBias())) return false;
+        if (!search_.exhaustive()) {
+            // Excluded by the rules already (evaluated once per window and light: a rock's back
+            // faces and buried half, met again by every caster triangle's column): nothing to
+            // place or filter.
+            if (search_.rules().knownExcluded(k, tri)) return false;
+            if (filtersMiss(scene_.window.objects[k].lsTriangle(tri), leastBias())) return false;
+        }
         std::optional<Receiver> made;
         const std::vector<glm::dvec3>* above = nullptr;  // its part above the ground
         const double beta = search_.receiver(k, tri, made, &above);
         if (beta < 0) return false;
         const Receiver& r = *made;
         if (!search_.exhaustive()) {
-            if (filtersMiss(r.tri, beta)) return false;
+            // With the least bias the filters above already answered for these same placed
+            // vertices: only a larger bias (a slope term) can reject more.
+            if (beta != leastBias() && filtersMiss(r.tri, beta)) return false;
             // The terrain rule, cheaply: the part of the receiver not buried deeper than the
             // tolerance lies wholly in front of the caster (a rock's crown beside a terrain
             // triangle whose column reaches only its buried side).
