@@ -496,28 +496,28 @@ std::array<glm::dvec3, 2> boxOf(const std::vector<PointT>& poly) {
 
 template <class Kn>
 bool shadedWhole(const std::vector<typename Kn::Point_3>& poly, const ShadeTest<Kn>& t) {
-    thread_local std::vector<Triangle> occluders;  // scratch: runs per reached part
-    occluders.clear();
-    {
-        // The source places triangles and walks trees in double, as every other stage
-        // does: in round-to-nearest, not in the interval code's upward rounding:
-        // placed upward, the caster's own triangle can come out an ulp nearer the light and
-        // "shade" the caster: a false cull.
-        CGAL::Protect_FPU_rounding<true> nearest(CGAL_FE_TONEAREST);
-        t.source->find(boxOf(poly), occluders);
-    }
     // One occluder certainly shading the whole part decides. One that only might (an
     // uncertain sign over intervals) counts as not shading: conservative, the part stays
     // reached; restarting exactly there instead (as clip() does) would cost many exact
     // restarts for parts the exact rule rarely shades. tests/filter_property_test.cpp
     // compares the fast path with the exact rule (never shaded where the exact rule is not,
     // and how often it keeps what the exact rule shades).
-    for (const Triangle& o : occluders)
-        if (shadesWhole<Kn>(o, poly, t)) {
-            t.source->shadedSome.store(true, std::memory_order_relaxed);
-            return true;
-        }
-    return false;
+    const CGAL::FPU_CW_t testMode = CGAL::FPU_get_cw();  // the caller's: upward for intervals
+    bool shaded = false;
+    {
+        // The source places triangles and walks trees in double, as every other stage
+        // does: in round-to-nearest, not in the interval code's upward rounding:
+        // placed upward, the caster's own triangle can come out an ulp nearer the light and
+        // "shade" the caster: a false cull. Each occluder is tested in the caller's mode.
+        CGAL::Protect_FPU_rounding<true> nearest(CGAL_FE_TONEAREST);
+        t.source->walk(boxOf(poly), [&](const Triangle& o) {
+            CGAL::Protect_FPU_rounding<true> testing(testMode);
+            shaded = shadesWhole<Kn>(o, poly, t);
+            return shaded;
+        });
+    }
+    if (shaded) t.source->shadedSome.store(true, std::memory_order_relaxed);
+    return shaded;
 }
 
 }  // namespace

@@ -34,13 +34,25 @@ namespace shadowcull::geometry {
 using Triangle = std::array<glm::dvec3, 3>;  // window-local metres
 
 // Opaque triangles (window-local) that may lie between the light and the points of a
-// window-local box (`find` appends them to `out`; a superset is fine, each is tested
-// exactly), and whether the exact tests dropped a reached part because one of them shaded
-// it wholly (for a proof's reason).
+// window-local box (a superset is fine, each is tested exactly), and whether the exact
+// tests dropped a reached part because one of them shaded it wholly (for a proof's reason).
+// `walk` calls `visit` on them one by one, in a fixed order, until it returns true (the
+// first that shades the part ends the walk: most parts are shaded by one of the first few,
+// and the rest of a long column towards the light is never walked).
 struct OccluderSource {
+    using Visit = std::function<bool(const Triangle&)>;
+    using Walk = std::function<void(const std::array<glm::dvec3, 2>& lsBox, const Visit& visit)>;
+    // A source that gives all its triangles at once (appended to `out`).
     using Find = std::function<void(const std::array<glm::dvec3, 2>& lsBox, std::vector<Triangle>& out)>;
-    explicit OccluderSource(Find f) : find(std::move(f)) {}
-    Find find;
+    explicit OccluderSource(Walk w) : walk(std::move(w)) {}
+    explicit OccluderSource(Find f)
+        : walk([find = std::move(f)](const std::array<glm::dvec3, 2>& lsBox, const Visit& visit) {
+              std::vector<Triangle> all;
+              find(lsBox, all);
+              for (const Triangle& t : all)
+                  if (visit(t)) return;
+          }) {}
+    Walk walk;
     mutable std::atomic<bool> shadedSome{false};
 };
 

@@ -254,7 +254,8 @@ public:
         // between a directional light and a reached part. The exhaustive reference uses the
         // same source, so the two stay comparable.
         if (!local_ && !(L_.filterRadius > 0))
-            occluders_.emplace([this](const std::array<glm::dvec3, 2>& box, std::vector<Triangle>& out) { findOccluders(box, out); });
+            occluders_.emplace(OccluderSource::Walk(
+                [this](const std::array<glm::dvec3, 2>& box, const OccluderSource::Visit& visit) { walkOccluders(box, visit); }));
     }
     ShadowSearch(const ShadowSearch&) = delete;
     ShadowSearch& operator=(const ShadowSearch&) = delete;
@@ -293,6 +294,7 @@ public:
     const Light& light() const { return L_; }  // as tested (dilated)
     const Light& sceneLight() const { return window_.lsLights[size_t(light_)]; }  // as the scene gives it
     const LightGeometry& lightGeometry() const { return lg_; }
+    const ReceiverRules& rules() const { return rules_; }
     bool exhaustive() const { return exhaustive_; }
     bool local() const { return local_; }
     const OccluderSource* occluders() const { return occluders_ ? &*occluders_ : nullptr; }
@@ -347,7 +349,7 @@ private:
     CasterResult walkCasterTree() const;
     CasterResult walkAllCasters() const;
     bool clusterMayCast(const Aabb& msBox, uint32_t items) const;
-    void findOccluders(const std::array<glm::dvec3, 2>& box, std::vector<Triangle>& out) const;
+    void walkOccluders(const std::array<glm::dvec3, 2>& box, const OccluderSource::Visit& visit) const;
 
     const WindowScene& scene_;
     const BakeWindow& window_;
@@ -400,14 +402,22 @@ private:
         // terrain, per window and light) are made only for triangles that may meet the
         // frustum (a terrain's columns reach a dense rock's ground line, thousands of
         // triangles per terrain triangle, most of them outside the column).
-        if (!search_.exhaustive() && filtersMiss(scene_.window.objects[k].lsTriangle(tri), leastBias())) return false;
+        if (!search_.exhaustive()) {
+            // Excluded by the rules already (evaluated once per window and light: a rock's back
+            // faces and buried half, met again by every caster triangle's column): nothing to
+            // place or filter.
+            if (search_.rules().knownExcluded(k, tri)) return false;
+            if (filtersMiss(scene_.window.objects[k].lsTriangle(tri), leastBias())) return false;
+        }
         std::optional<Receiver> made;
         const std::vector<glm::dvec3>* above = nullptr;  // its part above the ground
         const double beta = search_.receiver(k, tri, made, &above);
         if (beta < 0) return false;
         const Receiver& r = *made;
         if (!search_.exhaustive()) {
-            if (filtersMiss(r.tri, beta)) return false;
+            // With the least bias the filters above already answered for these same placed
+            // vertices: only a larger bias (a slope term) can reject more.
+            if (beta != leastBias() && filtersMiss(r.tri, beta)) return false;
             // The terrain rule, cheaply: the part of the receiver not buried deeper than the
             // tolerance lies wholly in front of the caster (a rock's crown beside a terrain
             // triangle whose column reaches only its buried side).
@@ -524,10 +534,13 @@ CasterResult ShadowSearch::walkAllCasters() const {
 
 // The opaque triangles that may shade a reached part (box `box`): the column from the
 // part's box back towards the light, walked as a receiver column is (the light reversed).
-// The exact tests then drop a part one of them shades wholly (no caster point of it lit).
+// The exact tests then drop a part one of them shades wholly (no caster point of it lit):
+// each is handed to `visit` as it is found, and the walk ends at the first that shades.
+// The first kMaxOccluders in the walk's order are offered, whichever shades.
 // Buried parts of the objects are not in the tree's boxes: fewer occluders, never a wrong one.
-void ShadowSearch::findOccluders(const std::array<glm::dvec3, 2>& box, std::vector<Triangle>& out) const {
+void ShadowSearch::walkOccluders(const std::array<glm::dvec3, 2>& box, const OccluderSource::Visit& visit) const {
     constexpr size_t kMaxOccluders = 256;  // enough for a part a fraction of a cell wide
+    size_t offered = 0;
     LightGeometry back = lg_;
     back.direction = -lg_.direction;
     Light backLight = L_;
@@ -543,8 +556,8 @@ void ShadowSearch::findOccluders(const std::array<glm::dvec3, 2>& box, std::vect
                                 return TriangleTree(mesh).visit([&](const Aabb& b) { return mq.mayHold(b); },
                                                                 [&](uint32_t tri) {
                                                                     if (!o.blocksLight(mesh.triangleGroup[tri])) return false;
-                                                                    out.push_back(o.lsTriangle(tri));
-                                                                    return out.size() >= kMaxOccluders;
+                                                                    ++offered;
+                                                                    return visit(o.lsTriangle(tri)) || offered >= kMaxOccluders;
                                                                 });
                             });
 }

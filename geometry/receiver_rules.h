@@ -81,6 +81,18 @@ public:
         return b;
     }
 
+    // True when the rules were already evaluated for the receiver and exclude it: a lookup
+    // that computes nothing, for callers that would otherwise place and filter it first (a
+    // rock's back faces and buried half, met again by every caster triangle's column).
+    bool knownExcluded(uint32_t object, uint32_t triangle) const {
+        const std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
+        if (!table) return false;
+        const Block* block = table[triangle / kBlock].load(std::memory_order_acquire);
+        if (!block) return false;
+        const double b = block->entries[triangle % kBlock].beta.load(std::memory_order_acquire);
+        return b != kUnknown && b < 0;
+    }
+
 private:
     static constexpr double kUnknown = -2.0;  // every computed value is -1 or >= 0
     static constexpr size_t kBlock = 64;      // triangles per block of the table

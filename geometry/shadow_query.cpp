@@ -222,7 +222,11 @@ ShadowQuery ShadowQuery::ofCluster(const Aabb& b, const RowTransform& m, const L
     }
     q.axisCount_ = 3;
     q.frustumCount_ = q.count_;
-    for (const glm::dvec3& e : {glm::dvec3(1, 0, 0), glm::dvec3(0, 1, 0), glm::dvec3(0, 0, 1)}) q.addSlabs(q.hs_, q.count_, e);
+    // The world's axes, but for one the box's own already is (an unturned instance, or a
+    // window-local box: the occluders' column): its slabs would be the same half-spaces
+    // again, bit for bit, tested twice at every node.
+    for (const glm::dvec3& e : {glm::dvec3(1, 0, 0), glm::dvec3(0, 1, 0), glm::dvec3(0, 0, 1)})
+        if (e != m.rows[0] && e != m.rows[1] && e != m.rows[2]) q.addSlabs(q.hs_, q.count_, e);
     return q;
 }
 

@@ -112,3 +112,38 @@ TEST(ShadedCaster, ExactTestDropsOnlyWhatOneOccluderShadesWholly) {
     const OccluderSource above = source({bigAbove});
     EXPECT_EQ(fl.reaches(floor, 0.0, nullptr, nullptr, &above), fl.reaches(floor, 0.0));
 }
+
+// The occluders are offered one by one and the walk ends at the first that shades the part:
+// the rest of a long column towards the light is never walked. Until one shades, every
+// triangle is offered, in the walk's order.
+TEST(ShadedCaster, OccluderWalkEndsAtTheFirstThatShades) {
+    const LightGeometry down{true, {0, -1, 0}, {0, 0, 0}};
+    const Triangle caster = {glm::dvec3(0, 2, 0), glm::dvec3(0, 2, 1), glm::dvec3(1, 2, 0)};
+    const ExactFrustum f(caster, down, 0.0);
+    const Triangle floor = {glm::dvec3(-5, 0, -5), glm::dvec3(-5, 0, 5), glm::dvec3(5, 0, 5)};
+    ASSERT_TRUE(f.reaches(floor, 0.0));
+    const Triangle below = {glm::dvec3(-10, 1, -10), glm::dvec3(-10, 1, 30), glm::dvec3(30, 1, -10)};  // behind the caster
+    const Triangle above = {glm::dvec3(-10, 3, -10), glm::dvec3(-10, 3, 30), glm::dvec3(30, 3, -10)};  // shades it wholly
+    // Offered per walk (the exact path, should the interval one restart, walks again).
+    auto walkOf = [](std::vector<Triangle> tris, std::vector<size_t>& offered) {
+        return OccluderSource(OccluderSource::Walk([tris, &offered](const std::array<glm::dvec3, 2>&, const OccluderSource::Visit& visit) {
+            offered.push_back(0);
+            for (const Triangle& t : tris) {
+                ++offered.back();
+                if (visit(t)) return;
+            }
+        }));
+    };
+    std::vector<size_t> offered;
+    const OccluderSource shading = walkOf({below, below, above, above, below}, offered);
+    EXPECT_FALSE(f.reaches(floor, 0.0, nullptr, nullptr, &shading));
+    EXPECT_TRUE(shading.shadedSome.load());
+    ASSERT_FALSE(offered.empty());
+    for (size_t n : offered) EXPECT_EQ(n, 3u);
+    offered.clear();
+    const OccluderSource none = walkOf({below, below, below}, offered);
+    EXPECT_TRUE(f.reaches(floor, 0.0, nullptr, nullptr, &none));
+    EXPECT_FALSE(none.shadedSome.load());
+    ASSERT_FALSE(offered.empty());
+    for (size_t n : offered) EXPECT_EQ(n, 3u);
+}
