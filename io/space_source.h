@@ -76,8 +76,10 @@ class SpaceSource {
 public:
     // Reads space.xml, lists the chunk files and scans every one of them (or those of `only`
     // and their neighbours). Errors are loadSpace's: a malformed chunk file stops the scan
-    // (the first such file in file-name order, as loadSpace reads them). A stop request
-    // (util/stop_request.h) stops it between chunk files with an Interrupted error.
+    // (the first such file in file-name order, as loadSpace reads them). The files are
+    // parsed in parallel, a batch at a time, and resolved in grid order: the same warnings
+    // and errors on any number of threads. A stop request (util/stop_request.h) stops it
+    // between batches with an Interrupted error.
     static Expected<SpaceSource> scan(const std::string& spaceDir, const std::string& resourceRootOverride,
                                       const std::vector<ChunkCoord>* only = nullptr, const ScanProgress& progress = {});
 
