@@ -22,7 +22,8 @@ std::optional<ShardSpec> parseShard(const std::string& text) {
 }
 
 double chunkWork(const SpaceSource& space, ChunkCoord c) {
-    const size_t objects = space.chunks().at(c).usableObjects;
+    const ChunkEntry& e = space.chunks().at(c);
+    const double objects = double(e.usableObjects) + double(e.triangles) / kTrianglesPerObject;
     // The chunk's column, any height: a light reaches it unless it surely cannot.
     const double size = space.settings().chunkSize;
     Aabb column;
@@ -30,7 +31,7 @@ double chunkWork(const SpaceSource& space, ChunkCoord c) {
     column.max = glm::dvec3(double(c.x + 1) * size, 1e9, double(c.z + 1) * size);
     size_t lights = 0;
     for (const Light& L : space.settings().lights) lights += boxBeyondRange(L, column) ? 0 : 1;
-    return double(objects) * double(lights) + 1.0;
+    return objects * double(lights) + 1.0;
 }
 
 std::vector<std::vector<ChunkCoord>> partitionChunks(const SpaceSource& space, int count) {

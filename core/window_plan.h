@@ -47,6 +47,7 @@ struct ChunkEntry {
     // vertex boxes, placed with a margin); empty when none. Planning windows (core/
     // window_plan.h) needs only this of the chunks a window does not hold.
     Aabb wsBounds;
+    uint64_t triangles = 0;  // of the usable objects' meshes and terrains (placements counted each)
 };
 
 // How far one light's shadows took a window beyond the `neighbours` rectangle.

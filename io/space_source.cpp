@@ -97,6 +97,7 @@ ResourceSummary summarize(const Mesh& m) {
         s.hi = glm::max(s.hi, p);
     }
     s.hasVertices = !m.positions.empty();
+    s.triangles = m.triangles.size();
     s.sourceFiles = m.sourceFiles;
     return s;
 }
@@ -111,6 +112,7 @@ ResourceSummary summarize(const Heightfield& hf) {
         s.hi = glm::dvec3(hf.size, *hi, hf.size);
         s.hasVertices = true;
     }
+    s.triangles = hf.n > 1 ? 2 * size_t(hf.n - 1) * size_t(hf.n - 1) : 0;
     s.sourceFiles = hf.sourceFiles;
     return s;
 }
@@ -451,6 +453,7 @@ ChunkEntry SpaceSource::entryOf(const ChunkFile& cf, ChunkCoord coord) const {
         if (o.skipped) continue;
         const ResourceSummary& rs = *resource(o);
         h.pod(rs.contentHash);
+        entry.triangles += rs.triangles;
         if (rs.hasVertices) entry.wsBounds.extend(wsObjectBounds(rs, o, coord, settings_.chunkSize));
     }
     entry.objectsHash = h.value();

@@ -38,6 +38,7 @@ struct ResourceSummary {
     bool usable = false;        // loaded without error (else every object naming it is skipped)
     uint64_t contentHash = 0;   // of the mesh or heightfield (usable only)
     bool hasVertices = false;   // the box below is set
+    size_t triangles = 0;       // a mesh's triangles, a heightfield's 2 (n - 1)^2 (usable only)
     // The box of its vertices (metres): a model's in mesh coordinates; a terrain's over its
     // chunk square, chunk-local ([0, S] in x and z, its lowest to highest sample in y).
     glm::dvec3 lo{0.0}, hi{0.0};
