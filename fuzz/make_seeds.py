@@ -3,9 +3,10 @@
 change): small valid inputs from data/sample and a few made here (glTF/GLB, 16-bit PNG
 terrain, tiny spaces), each a few KB. Multi-file inputs are joined by the separator line of
 fuzz/fuzz_support.h. The results JSON seeds of `diff` come from real bakes of the tiny
-spaces, so the path of a built shadowcull is needed for them:
+spaces, and the `plan` seeds from real plans of data/sample and a tiny space, so the path of
+a built shadowcull is needed for them; readers named after it limit what is rewritten:
 
-    fuzz/make_seeds.py [build/bin/shadowcull]
+    fuzz/make_seeds.py [build/bin/shadowcull [READER ...]]
 
 The glTF seeds of EXT_meshopt_compression are made with Debian's libmeshoptimizer (through
 ctypes) and gltfpack; without them those seeds are kept as they are.
@@ -331,9 +332,60 @@ def results(shadowcull, parts, tmp, name):
 
 
 # ---------------------------------------------------------------------------------------
+# Sharded bake plans (fuzz_plan.cpp: the --shard argument, plan.json, the shard's file,
+# inputs.json; "$SAMPLE", "$SETTINGS" and "$PLAN" stand for what depends on the checkout)
+
+def plan_files(shadowcull, space, shards, tmp):
+    out = tmp / "plan"
+    shutil.rmtree(out, ignore_errors=True)
+    # Exit 1 is a plan made with warnings (the tiny space's missing resource).
+    done = subprocess.run([shadowcull, "plan", str(space), "--shards", str(shards), "--plan", str(out), "--quiet"],
+                          stderr=subprocess.DEVNULL)
+    if done.returncode not in (0, 1):
+        raise RuntimeError(f"shadowcull plan {space} failed ({done.returncode})")
+    return out
+
+
+def plan_seed(out, index, shards, space, token, head_edit=lambda h: h):
+    def read(name):
+        return json.loads((out / name).read_text())
+
+    def compact(doc):
+        return json.dumps(doc, separators=(",", ":")).replace(str(space), token)
+
+    head = head_edit(read("plan.json"))
+    shard = read(f"shard-{index}-of-{shards}.json")
+    shard["plan"] = "$PLAN"
+    inputs = read("inputs.json")
+    inputs["plan"] = "$PLAN"
+    inputs["files"] = inputs["files"][:3]  # the list is not looked into: a few names keep the seed small
+    return join(f"{index}/{shards}", compact(head), compact(shard), compact(inputs))
+
+
+def plans(shadowcull, tmp):
+    seeds = {}
+    sample_plan = lambda h: dict(h, settings="$SETTINGS")
+    for shards, index in [(4, 1), (4, 4), (1, 1)]:
+        out = plan_files(shadowcull, SAMPLE, shards, tmp)
+        seeds[f"sample_{index}_of_{shards}.plan"] = plan_seed(out, index, shards, SAMPLE, "$SAMPLE", sample_plan)
+    # A tiny space with a warning (an object whose resource is missing): plan.json's warnings.
+    space = tmp / "warnings"
+    space.mkdir()
+    crate = bakes()["cube_on_terrain"][3]
+    files = {"space.xml": space_xml(SUN), "00000000o.chunk": chunk(model("m.obj", 40, 20, 50, "A-1"),
+                                                                   model("missing.obj", 45, 20, 50, "A-2")),
+             "00010000o.chunk": chunk(model("m.obj", 5, 20, 50, "B-1")), "m.obj": crate}
+    for file, part in files.items():
+        (space / file).write_bytes(part if isinstance(part, bytes) else part.encode())
+    seeds["warnings_2_of_2.plan"] = plan_seed(plan_files(shadowcull, space, 2, tmp), 2, 2, space, "SPACE")
+    return seeds
+
+
+# ---------------------------------------------------------------------------------------
 
 def main():
-    seeds = {"space": {}, "chunk": {}, "model": {}, "obj": {}, "gltf": {}, "terrain": {}, "diff": {}, "bake": {}}
+    seeds = {"space": {}, "chunk": {}, "model": {}, "obj": {}, "gltf": {}, "terrain": {}, "diff": {}, "bake": {},
+             "plan": {}}
 
     seeds["space"]["sample.xml"] = sample("space.xml")
     seeds["space"]["sides_root.xml"] = space_xml(
@@ -392,7 +444,11 @@ def main():
     for name, parts in bakes().items():
         seeds["bake"][name] = join(*parts)
 
-    if len(sys.argv) > 1:
+    only = set(sys.argv[2:])
+    if len(sys.argv) > 1 and (not only or "plan" in only):
+        with tempfile.TemporaryDirectory() as t:
+            seeds["plan"] = plans(sys.argv[1], pathlib.Path(t))
+    if len(sys.argv) > 1 and (not only or "diff" in only):
         with tempfile.TemporaryDirectory() as t:
             tmp = pathlib.Path(t)
             b = bakes()
@@ -401,11 +457,11 @@ def main():
             moved[0] = moved[0].replace("52 4 50", "40 4 45").replace("0.3 -1 0.2", "-0.2 -1 0.1")
             seeds["diff"]["changed.json"] = join(a, results(sys.argv[1], moved, tmp, "b"))
             seeds["diff"]["skipped_same.json"] = results(sys.argv[1], b["floating_skipped"], tmp, "c")
-    else:
-        print("no shadowcull given: diff seeds left as they are", file=sys.stderr)
+    if len(sys.argv) < 2:
+        print("no shadowcull given: diff and plan seeds left as they are", file=sys.stderr)
 
     for reader, files in seeds.items():
-        if not files:
+        if not files or (only and reader not in only):
             continue
         d = CORPUS / reader
         shutil.rmtree(d, ignore_errors=True)

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/file_read.h"
+#include "io/json_integer.h"
 
 namespace shadowcull::results {
 
@@ -131,16 +132,9 @@ T integer(const json& o, const char* key) {
     const json& v = o.at(key);
     const std::string what = std::string("'") + key + "' ";
     if (!v.is_number_integer()) throw BadContent{what + "must be an integer, not " + v.dump()};
-    using Limits = std::numeric_limits<T>;
-    if (v.is_number_unsigned()) {
-        const uint64_t u = v.get<uint64_t>();
-        if (u > uint64_t(Limits::max())) throw BadContent{what + v.dump() + " is out of range"};
-        return T(u);
-    }
-    const int64_t s = v.get<int64_t>();
-    if (s < int64_t(Limits::min()) || (s > 0 && uint64_t(s) > uint64_t(Limits::max())))
-        throw BadContent{what + v.dump() + " is out of range"};
-    return T(s);
+    const std::optional<T> n = integerIn<T>(v);
+    if (!n) throw BadContent{what + v.dump() + " is out of range"};
+    return *n;
 }
 
 glm::dvec3 readVec(const json& a) {

@@ -2,12 +2,14 @@
 
 #include "io/shard_plan.h"
 
+#include <algorithm>
 #include <filesystem>
 
 #include <nlohmann/json.hpp>
 
 #include "io/chunk_writer.h"
 #include "io/file_read.h"
+#include "io/json_integer.h"
 #include "util/hash.h"
 #include "util/stop_request.h"
 
@@ -27,12 +29,29 @@ json vec(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
 
 glm::dvec3 vecOf(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
 
+// Hex digits only: stoull alone would take " 1", "-1" (as ffff...) and "0x1" too.
 uint64_t hexOf(const json& j) {
     const std::string s = j.get<std::string>();
-    size_t used = 0;
-    const uint64_t v = std::stoull(s, &used, 16);
-    if (used != s.size() || s.empty()) throw std::invalid_argument("not a hex hash: " + s);
-    return v;
+    if (s.empty() || s.size() > 16 || s.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
+        throw std::invalid_argument("not a hex hash: " + s);
+    return std::stoull(s, nullptr, 16);
+}
+
+// A count, index or line: a JSON integer of at least `least` within T (integerIn: what
+// get<T>() would do with 1e20 or -1 is undefined or a huge count).
+template <class T>
+T integerOf(const json& v, const char* what, T least) {
+    const std::optional<T> n = integerIn<T>(v);
+    if (!n || *n < least)
+        throw std::invalid_argument(std::string(what) + " must be an integer from " + std::to_string(least) + ", not " + v.dump());
+    return *n;
+}
+
+// A list field (a range-for over a string or a number would take it as a list of one).
+const json& arrayAt(const json& j, const char* key) {
+    const json& a = j.at(key);
+    if (!a.is_array()) throw std::invalid_argument(std::string(key) + " must be a list, not " + a.dump());
+    return a;
 }
 
 ChunkCoord coordOf(const json& j) {
@@ -61,19 +80,19 @@ json headJson(const PlanHead& head) {
 PlanHead headOf(const json& j) {
     PlanHead h;
     h.spaceDir = j.at("space").get<std::string>();
-    h.shards = j.at("shards").get<int>();
+    h.shards = integerOf(j.at("shards"), "shards", 1);
     SpaceOutline& o = h.outline;
-    o.chunks = j.at("chunks").get<size_t>();
+    o.chunks = integerOf<size_t>(j.at("chunks"), "chunks", 0);
     o.contentHash = hexOf(j.at("content"));
     o.listingHash = hexOf(j.at("listing"));
     o.settingsHash = hexOf(j.at("settings"));
     const json& b = j.at("bounds");
     o.bounds.wsSpace = Aabb{vecOf(b.at("min")), vecOf(b.at("max"))};
     o.bounds.overhang = b.at("overhang").get<double>();
-    h.shardChunks = j.at("shardChunks").get<std::vector<size_t>>();
-    for (const json& w : j.at("warnings"))
-        h.diagnostics.push_back({w.at("file").get<std::string>(), w.at("line").get<int>(), w.at("message").get<std::string>()});
-    if (h.shards < 1 || h.shardChunks.size() != size_t(h.shards)) throw std::invalid_argument("shardChunks does not list every shard");
+    for (const json& n : arrayAt(j, "shardChunks")) h.shardChunks.push_back(integerOf<size_t>(n, "shardChunks", 0));
+    for (const json& w : arrayAt(j, "warnings"))
+        h.diagnostics.push_back({w.at("file").get<std::string>(), integerOf(w.at("line"), "line", 0), w.at("message").get<std::string>()});
+    if (h.shardChunks.size() != size_t(h.shards)) throw std::invalid_argument("shardChunks does not list every shard");
     return h;
 }
 
@@ -95,15 +114,19 @@ json shardJson(const PlanShard& shard, uint64_t planId) {
 
 PlanShard shardOf(const json& j) {
     PlanShard s;
-    s.index = j.at("shard").get<int>();
-    s.count = j.at("of").get<int>();
-    for (const json& a : j.at("assigned")) s.assigned.push_back(coordOf(a));
-    for (const json& c : j.at("chunks")) {
+    s.index = integerOf(j.at("shard"), "shard", 1);
+    s.count = integerOf(j.at("of"), "of", 1);
+    for (const json& a : arrayAt(j, "assigned")) s.assigned.push_back(coordOf(a));
+    // A chunk assigned twice would be baked twice, and its results file refused by merge.
+    if (std::adjacent_find(s.assigned.begin(), s.assigned.end(), [](ChunkCoord a, ChunkCoord b) { return !(a < b); }) !=
+        s.assigned.end())
+        throw std::invalid_argument("the assigned chunks are not in grid order, each once");
+    for (const json& c : arrayAt(j, "chunks")) {
         ChunkEntry e;
         e.path = c.at("path").get<std::string>();
         e.objectsHash = hexOf(c.at("objects"));
         e.contentWithoutShadowsHash = hexOf(c.at("text"));
-        e.usableObjects = c.at("usable").get<size_t>();
+        e.usableObjects = integerOf<size_t>(c.at("usable"), "usable", 0);
         if (const json& b = c.at("bounds"); !b.is_null()) e.wsBounds = Aabb{vecOf(b.at(0)), vecOf(b.at(1))};
         s.chunks.emplace(coordOf(c.at("chunk")), std::move(e));
     }
@@ -122,9 +145,10 @@ Expected<json> readPlanJson(const std::string& path, const char* format, uint64_
     if (!text) return text.error();
     if (id) *id = Hasher().str(*text).value();
     json j = json::parse(*text, nullptr, false);
-    if (j.is_discarded() || !j.is_object() || j.value("format", "") != format)
+    // Compared as JSON values: value("format", "") would throw on a format that is no string.
+    if (j.is_discarded() || !j.is_object() || j.value("format", json()) != format)
         return makeError(ErrorKind::BadInput, path, 0, std::string("not a ") + format + " file");
-    if (j.value("version", 0) != kVersion)
+    if (j.value("version", json()) != kVersion)
         return makeError(ErrorKind::BadInput, path, 0, "a plan of another version of shadowcull: plan again");
     return j;
 }

@@ -8,13 +8,13 @@
 # fail the run. The reproducers in fuzz/regressions/ are replayed first, under the
 # sanitizers; one that crashes again fails the run too.
 #
-#   scripts/fuzz.sh [SECONDS] [READER ...]        READER: space chunk model obj gltf terrain diff bake
+#   scripts/fuzz.sh [SECONDS] [READER ...]        READER: space chunk model obj gltf terrain diff bake import layout plan
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 readers=("$@")
-[ ${#readers[@]} -gt 0 ] || readers=(space chunk model obj gltf terrain diff bake import layout)
+[ ${#readers[@]} -gt 0 ] || readers=(space chunk model obj gltf terrain diff bake import layout plan)
 
 # clang plus compiler-rt (libclang-rt-14-dev holds libFuzzer, -fsanitize=fuzzer, on Debian
 # 12); llvm for llvm-symbolizer (stack traces with file and line).
@@ -32,12 +32,12 @@ cmake --build build-fuzz -j "$(nproc)" --target "${targets[@]}" >>"$log" 2>&1 ||
 echo "fuzz: build-fuzz ready in $(($(date +%s) - start)) s (log: $log)"
 
 # Input size limits: a few times the largest seed, so that inputs can grow but runs stay fast.
-declare -A max_len=([space]=4096 [chunk]=8192 [model]=8192 [obj]=8192 [gltf]=8192 [terrain]=8192 [diff]=16384 [bake]=8192 [import]=16384 [layout]=8192)
+declare -A max_len=([space]=4096 [chunk]=8192 [model]=8192 [obj]=8192 [gltf]=8192 [terrain]=8192 [diff]=16384 [bake]=8192 [import]=16384 [layout]=8192 [plan]=16384)
 # Dictionaries (fuzz/dict/): the element names, keys and keywords each reader compares against.
 declare -A dicts=([space]="xml space" [chunk]="xml chunk" [model]="xml model obj gltf split" [obj]="obj split"
                   [gltf]="gltf split" [terrain]="xml png split" [diff]="results split"
                   [bake]="xml space chunk obj png split" [import]="gltf import split"
-                  [layout]="xml space chunk obj png split")
+                  [layout]="xml space chunk obj png split" [plan]="plan split")
 
 scratch=$(mktemp -d /dev/shm/shadowcull-fuzz.XXXXXX 2>/dev/null || mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
@@ -55,7 +55,7 @@ signature() {
   local out kind frame
   out=$(timeout 60 "build-fuzz/bin/fuzz_$1" -timeout=10 -rss_limit_mb=4096 "$2" 2>&1) && return 0
   kind=$(grep -o -m1 -E 'runtime error|LeakSanitizer|AddressSanitizer: [a-z-]+|libFuzzer: [a-z-]+|loader broke its promise|broken promise' <<<"$out" || true)
-  frame=$(grep -E '^ +#[0-9]+ ' <<<"$out" | grep -o -m1 -E '/(core|cli|raycast|geometry|gpu|gltf)/[^ :]+:[0-9]+' | sed 's|^/||' || true)
+  frame=$(grep -E '^ +#[0-9]+ ' <<<"$out" | grep -o -m1 -E '/(util|core|io|cli|raycast|geometry|gpu|gltf)/[^ :]+:[0-9]+' | sed 's|^/||' || true)
   echo "${kind:-crash} @ ${frame:-?}"
 }
 
