@@ -512,10 +512,15 @@ Status SpaceSource::readOtherInputs() {
 Status SpaceSource::checkAgainstPlan(ChunkCoord c, const ChunkFile& cf) {
     const ChunkEntry& fromPlan = chunks_.at(c);
     const ChunkEntry now = entryOf(cf, c);
-    if (now.objectsHash != fromPlan.objectsHash || now.contentWithoutShadowsHash != fromPlan.contentWithoutShadowsHash)
+    // The box too: the windows were planned on the plan's boxes, and a box that is not the
+    // chunk's (a plan edited by hand) could leave a receiver out of them.
+    const bool sameBox = now.wsBounds.min == fromPlan.wsBounds.min && now.wsBounds.max == fromPlan.wsBounds.max;
+    if (now.objectsHash != fromPlan.objectsHash || now.contentWithoutShadowsHash != fromPlan.contentWithoutShadowsHash ||
+        now.usableObjects != fromPlan.usableObjects || !sameBox)
         return makeError(ErrorKind::StalePlan, cf.path, 0,
                          "changed since the plan was made (its objects, their resources, or its text apart from the "
-                         "masks): plan again (shadowcull plan), then bake the shards");
+                         "masks), or the plan's summary of it is not its own: plan again (shadowcull plan), then "
+                         "bake the shards");
     return Status::ok();
 }
 

@@ -4,6 +4,7 @@
 // matches the space is refused with exit 9 before anything is written.
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "bench/world_gen.h"
 #include "io/shard_plan.h"
@@ -183,6 +184,18 @@ TEST(Plan, APlanThatNoLongerMatchesTheSpaceIsRefusedBeforeAnythingIsWritten) {
     writeText(fs::path(space) / "space.xml", xml + "\n<!-- -->\n");
     refused(3, "space-xml", "space.xml");
     writeText(fs::path(space) / "space.xml", xml);
+
+    // A summary that is not the chunk's (a plan edited by hand: a box lowered, which could
+    // leave a receiver out of the windows) is refused when the chunk is loaded.
+    {
+        const fs::path shardFile = fs::path(planDir) / "shard-1-of-4.json";
+        const std::string before = readText(shardFile);
+        nlohmann::json j = nlohmann::json::parse(before);
+        j["chunks"][0]["bounds"][1][1] = j["chunks"][0]["bounds"][1][1].get<double>() - 1.0;
+        writeText(shardFile, j.dump() + "\n");
+        refused(1, "edited-box", "the plan's summary of it is not its own");
+        writeText(shardFile, before);
+    }
 
     // The plan of another shard count is bad input; a shard file of another plan is stale.
     EXPECT_EQ(cli(shardArgs(space, 1, 2) + " --out " + q(dir / "out-n") + withPlan, dir, "other-n"), 3);
