@@ -171,10 +171,10 @@ TEST(Messages, OptionErrorsGiveTheRangeAndTheValue) {
         {"bake " + space + " --gpu-resolution 1e3", "--gpu-resolution: must be a whole number from 16 to 16384 (got '1e3')"},
         {"import '" + (dir / "space" / "space.xml").string() + "' out --scene abc", "--scene: must be a whole number, 0 or more (got 'abc')"},
         {"import '" + (dir / "space" / "space.xml").string() + "' out --chunk-size -5", "--chunk-size: must be from 1 to 100000 (got -5)"},
-        {"", "shadowcull: error: no command given (bake, sweep, diff, explain, check, render, preview, import, export, report or merge)"},
+        {"", "shadowcull: error: no command given (bake, sweep, diff, explain, check, render, preview, import, export, report, plan or merge)"},
         // Issue 35: an unknown command was "no command given".
         {"frobnicate", "shadowcull: error: unknown command 'frobnicate' (the nearest is 'bake'); the commands are bake, sweep, "
-                       "diff, explain, check, render, preview, import, export, report or merge\n"},
+                       "diff, explain, check, render, preview, import, export, report, plan or merge\n"},
         {"bkae " + space, "shadowcull: error: unknown command 'bkae' (did you mean 'bake'?); the commands are bake, sweep,"},
     };
     for (const OptionCase& c : cases) {
