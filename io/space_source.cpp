@@ -144,6 +144,39 @@ uint64_t listingHashOf(const std::vector<std::string>& names) {
     return h.value();
 }
 
+// Each chunk file with its position in file-name order (the order warnings and errors of
+// reading the files follow, as loadSpace has always read them), from the directory's sorted
+// *.chunk names; a name that is no chunk's is a warning, two names of one chunk an error.
+using NamedChunkFiles = std::map<ChunkCoord, std::pair<fs::path, size_t>>;
+Expected<NamedChunkFiles> namedChunkFiles(const std::string& spaceDir, const std::vector<std::string>& names,
+                                          std::vector<Diagnostic>& nameWarnings) {
+    if (names.empty())
+        return bad(spaceDir, 0, "the space has a space.xml but no chunk files (XXXXZZZZo.chunk beside it): nothing to bake");
+    NamedChunkFiles named;
+    for (size_t k = 0; k < names.size(); ++k) {
+        const fs::path p = fs::path(spaceDir) / names[k];
+        std::optional<ChunkCoord> c = parseChunkName(names[k]);
+        if (!c) {
+            nameWarnings.push_back({p.string(), 0, "not a chunk name (XXXXZZZZo.chunk, 16-bit hex); file ignored"});
+            continue;
+        }
+        // Hex digits in either case name the same chunk: two such files are two versions of
+        // one chunk, and baking either would silently drop the other.
+        if (auto [it, added] = named.emplace(*c, std::make_pair(p, k)); !added)
+            return bad(p.string(), 0, "names the same chunk as " + it->second.first.filename().string() + " (grid " +
+                                          std::to_string(c->x) + ", " + std::to_string(c->z) +
+                                          "); keep one of the two files");
+    }
+    if (named.empty()) {
+        std::string some;
+        for (size_t k = 0; k < names.size() && k < 3; ++k) some += (k ? ", " : "") + names[k];
+        return bad(spaceDir, 0, "the space has no chunk files: " + std::to_string(names.size()) + " file(s) end in .chunk (" +
+                                    some + (names.size() > 3 ? ", ..." : "") +
+                                    "), but none is named XXXXZZZZo.chunk (16-bit hex grid x and z)");
+    }
+    return named;
+}
+
 // space.xml's bytes and the resource root the bake resolved from it (and --res).
 Expected<uint64_t> settingsHashOf(const SpaceSettings& S) {
     Expected<std::string> xml = readRegularFile((fs::path(S.spaceDir) / "space.xml").string(), "space.xml", ErrorKind::BadInput);
@@ -333,35 +366,10 @@ Expected<SpaceSource> SpaceSource::read(const std::string& spaceDir, const std::
     }
     Expected<std::vector<std::string>> listed = chunkFileNamesIn(spaceDir);
     if (!listed) return listed.error();
-    std::vector<fs::path> files;
-    for (const std::string& name : *listed) files.push_back(fs::path(spaceDir) / name);
-    if (files.empty())
-        return bad(spaceDir, 0, "the space has a space.xml but no chunk files (XXXXZZZZo.chunk beside it): nothing to bake");
-    // Each chunk with its position in file-name order (the order warnings and errors of
-    // reading the files follow, as loadSpace has always read them).
-    std::map<ChunkCoord, std::pair<fs::path, size_t>> named;
     std::vector<Diagnostic> nameWarnings;
-    for (size_t k = 0; k < files.size(); ++k) {
-        const fs::path& p = files[k];
-        std::optional<ChunkCoord> c = parseChunkName(p.filename().string());
-        if (!c) {
-            nameWarnings.push_back({p.string(), 0, "not a chunk name (XXXXZZZZo.chunk, 16-bit hex); file ignored"});
-            continue;
-        }
-        // Hex digits in either case name the same chunk: two such files are two versions of
-        // one chunk, and baking either would silently drop the other.
-        if (auto [it, added] = named.emplace(*c, std::make_pair(p, k)); !added)
-            return bad(p.string(), 0, "names the same chunk as " + it->second.first.filename().string() + " (grid " +
-                                          std::to_string(c->x) + ", " + std::to_string(c->z) +
-                                          "); keep one of the two files");
-    }
-    if (named.empty()) {
-        std::string some;
-        for (size_t k = 0; k < files.size() && k < 3; ++k) some += (k ? ", " : "") + files[k].filename().string();
-        return bad(spaceDir, 0, "the space has no chunk files: " + std::to_string(files.size()) + " file(s) end in .chunk (" +
-                                    some + (files.size() > 3 ? ", ..." : "") +
-                                    "), but none is named XXXXZZZZo.chunk (16-bit hex grid x and z)");
-    }
+    Expected<NamedChunkFiles> namedFiles = namedChunkFiles(spaceDir, *listed, nameWarnings);
+    if (!namedFiles) return namedFiles.error();
+    const NamedChunkFiles& named = *namedFiles;
 
     // In grid order: read each chunk, resolve its resources, show it, drop it (or keep it).
     // The warnings of reading a file are kept by file order, those of its resources come in
