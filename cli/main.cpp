@@ -51,7 +51,7 @@ int runPlanCommand(PlanOptions opt, bool quiet) {
     }
     for (const Diagnostic& d : r->diagnostics) std::fprintf(stderr, "shadowcull: warning: %s\n", d.what().c_str());
     if (!quiet)
-        std::printf("plan: %s, %zu chunks in %d shards (at most %zu chunks baked and %zu read by one shard), %.1f s\n",
+        std::printf("plan: %s, %zu chunks in %d shards (a shard bakes at most %zu and reads at most %zu of them), %.1f s\n",
                     opt.planDir.c_str(), r->chunks, opt.shards, r->largestShardChunks, r->largestWindowChunks, r->seconds);
     return r->diagnostics.empty() ? kExitOk : kExitSkippedInput;
 }
