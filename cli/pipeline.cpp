@@ -410,13 +410,15 @@ Expected<std::vector<ChunkCoord>> chunksToBake(const BakeOptions& opt, const Spa
 // A planned shard knows the rest of the space's inputs (every chunk file and resource)
 // from its plan, read only when one of its outputs exists: an output that does not exist
 // cannot be an input, and the list grows with the world.
-Status completeInputs(const BakeOptions& opt, SpaceSource& source, const std::vector<ChunkCoord>& targets) {
+Status completeInputs(const BakeOptions& opt, SpaceSource& source, const std::vector<ChunkCoord>& targets,
+                      const BakeFiles& files) {
     if (!source.isPlanned()) return Status::ok();
     std::error_code ec;
     bool exists = !opt.resultsPath.empty() && fs::exists(opt.resultsPath, ec);
+    // In place, the targets are the chunk files themselves (inputs by design, never refused).
     if (!opt.outDir.empty())
         for (size_t k = 0; k < targets.size() && !exists; ++k)
-            exists = fs::exists(fs::path(opt.outDir) / fs::path(source.chunks().at(targets[k]).path).filename(), ec);
+            exists = fs::exists(files.targetOf(source.chunks().at(targets[k]).path), ec);
     return exists ? source.readOtherInputs() : Status::ok();
 }
 
@@ -564,9 +566,9 @@ Expected<BakeResult> runBakeWriting(const BakeOptions& opt, const Progress& prog
     if (Status i = interrupted(); !i) return i.error();
 
     // 3. Outputs: never an input, and every one writable before any work is done.
-    if (Status s = completeInputs(opt, source, targets); !s) return s.error();
-    result.inputFiles = source.inputFiles();
     BakeFiles files(opt, result, committed);
+    if (Status s = completeInputs(opt, source, targets, files); !s) return s.error();
+    result.inputFiles = source.inputFiles();
     if (Status s = files.prepare(source, targets); !s) return s.error();
 
     // 4. Bake every chunk; stage its new text in a temporary file beside the target.

@@ -21,23 +21,30 @@ namespace shadowcull::cli {
 
 namespace {
 
-// The chunks every window of `targets` holds: the analytic bake's (what the shadows reach)
-// and the `neighbours` rectangles of the original method, so that a shard plans either.
-std::set<ChunkCoord> windowChunks(const SpaceSource& space, const std::vector<ChunkCoord>& targets) {
-    const WindowPlanner analytic(space.settings(), space.chunks(), true, space.outline().bounds);
-    const WindowPlanner rectangle(space.settings(), space.chunks(), false, space.outline().bounds);
+// The windows a shard's bake may plan: the analytic bake's (what the shadows reach) and the
+// `neighbours` rectangles of the original method, so that a shard plans either. Built once
+// per plan: each walks every chunk's summary.
+struct Planners {
+    WindowPlanner analytic, rectangle;
+    explicit Planners(const SpaceSource& space)
+        : analytic(space.settings(), space.chunks(), true, space.outline().bounds),
+          rectangle(space.settings(), space.chunks(), false, space.outline().bounds) {}
+};
+
+// The chunks every window of `targets` holds.
+std::set<ChunkCoord> windowChunks(const Planners& planners, const std::vector<ChunkCoord>& targets) {
     std::set<ChunkCoord> held;
     for (ChunkCoord c : targets) {
-        for (ChunkCoord w : analytic.plan(c).chunks) held.insert(w);
-        for (ChunkCoord w : rectangle.plan(c).chunks) held.insert(w);
+        for (ChunkCoord w : planners.analytic.plan(c).chunks) held.insert(w);
+        for (ChunkCoord w : planners.rectangle.plan(c).chunks) held.insert(w);
     }
     return held;
 }
 
-PlanShard shardPlan(const SpaceSource& space, int index, int count, std::vector<ChunkCoord> assigned) {
+PlanShard shardPlan(const SpaceSource& space, const Planners& planners, int index, int count, std::vector<ChunkCoord> assigned) {
     PlanShard s;
     s.index = index, s.count = count;
-    for (ChunkCoord c : windowChunks(space, assigned)) {
+    for (ChunkCoord c : windowChunks(planners, assigned)) {
         ChunkEntry e = space.chunks().at(c);
         e.contentHash = 0;  // the shard's first load stands for it (SpaceSource::load)
         s.chunks.emplace(c, std::move(e));
@@ -86,10 +93,11 @@ Expected<PlanSummary> makePlan(const PlanOptions& opt) {
             return s.error();
 
     std::vector<std::vector<ChunkCoord>> parts = partitionChunks(space, opt.shards);
+    const Planners planners(space);
     std::vector<PlanShard> shards;
     PlanSummary summary;
     for (int k = 1; k <= opt.shards; ++k) {
-        shards.push_back(shardPlan(space, k, opt.shards, std::move(parts[size_t(k - 1)])));
+        shards.push_back(shardPlan(space, planners, k, opt.shards, std::move(parts[size_t(k - 1)])));
         summary.largestShardChunks = std::max(summary.largestShardChunks, shards.back().assigned.size());
         summary.largestWindowChunks = std::max(summary.largestWindowChunks, shards.back().chunks.size());
     }
