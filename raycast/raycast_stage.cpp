@@ -439,31 +439,6 @@ Tracer makeTracer(const BakeWindow& window, const WindowScene& scene, const Rayc
     return tracer;
 }
 
-// The receiver-side searches (receiver_targets.h): the bits of large casters the group's
-// own samples left undecided, one search per (group, light).
-std::vector<WitnessSearch> receiverSideSearches(const BakeWindow& window, const ChunkVerdicts& cv, const RaycastOptions& opt) {
-    std::vector<WitnessSearch> out;
-    for (size_t oi = 0; oi < cv.objects.size(); ++oi) {
-        if (cv.objects[oi].windowObject < 0) continue;
-        const WindowObject& o = window.objects[size_t(cv.objects[oi].windowObject)];
-        for (int g = 0; g < cv.objects[oi].groupCount; ++g) {
-            bool large = false, checked = false;
-            for (int l = 0; l < cv.lightCount; ++l) {
-                if (cv.at(oi, g, l).verdict != Verdict::Undecided) continue;
-                if (!checked) {
-                    large = isLargeCaster(o, uint32_t(g), opt.areaSamples, opt.largeCasterSpacing);
-                    checked = true;
-                }
-                if (!large) break;
-                WitnessSearch ws{oi, g, l, {}};
-                ws.throughReceivers = true;
-                out.push_back(std::move(ws));
-            }
-        }
-    }
-    return out;
-}
-
 // One pass of witness searches over a window: every search's targets, each light it asks
 // for that is still undecided; in parallel over the searches (TBB).
 struct SearchPass {
@@ -475,6 +450,11 @@ struct SearchPass {
     std::atomic<uint64_t>& rays;
     std::atomic<uint64_t>& kept;
     std::atomic<uint64_t>& examined;
+    // Non-null: a bit of a large caster that the group's own samples leave undecided gets
+    // the receiver-side search (receiver_targets.h) right after them, in the same task, with
+    // this reason; so the few long searches of a window's terrains share the threads with
+    // its other searches instead of running after them, two or three at a time.
+    const char* receiverSideWhy = nullptr;
 
     // `countExamined`: the bits count once per stage run (the receiver-side pass examines
     // bits the first one already counted).
@@ -500,14 +480,23 @@ struct SearchPass {
                 task.targets = samples.placed(window.objects[object], uint32_t(task.group));
         }
         uint64_t localRays = 0;
+        std::optional<bool> large;  // isLargeCaster, asked once
+        std::vector<WitnessSearch> through;  // the receiver-side searches the bits call for
         for (int l = 0; l < cv.lightCount; ++l) {
             if (task.light >= 0 && l != task.light) continue;
             Decision& d = cv.at(task.object, task.group, l);
             if (d.verdict != Verdict::Undecided) continue;
             if (countExamined) ++examined;
             searchBit(task, object, window.lsLights[size_t(l)], ownSamples, d, why, localRays);
+            if (!receiverSideWhy || !ownSamples || d.verdict != Verdict::Undecided) continue;
+            if (!large) large = isLargeCaster(window.objects[object], uint32_t(task.group), opt.areaSamples, opt.largeCasterSpacing);
+            if (!*large) continue;
+            through.push_back({task.object, task.group, l, {}});
+            through.back().throughReceivers = true;
         }
         rays += localRays;
+        // One bit per light, each a task of its own (a terrain's lights in parallel).
+        if (!through.empty()) run(through, receiverSideWhy, false);
     }
 
     // True when a ray through one of `points` is a witness (the bit is then decided); `lit`
@@ -606,14 +595,11 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
         if (Status s = im.takeError(); !s) return s;
         const Tracer tracer = makeTracer(window, scene, im.opt);
         std::atomic<uint64_t> rays{0}, kept{0}, examined{0};
-        const SearchPass pass{tracer, window, cv, im.opt, *im.samples, rays, kept, examined};
+        SearchPass pass{tracer, window, cv, im.opt, *im.samples, rays, kept, examined};
+        if (receiverSide && im.opt.receiverSamples > 0)
+            pass.receiverSideWhy = "witness ray through a receiver in the group's shadow (receiver-side search)";
         pass.run(searches, reason, true);
         if (Status s = stopStatus(); !s) return s;
-        if (receiverSide && im.opt.receiverSamples > 0) {
-            std::vector<WitnessSearch> more = receiverSideSearches(window, cv, im.opt);
-            pass.run(more, "witness ray through a receiver in the group's shadow (receiver-side search)", false);
-            if (Status s = stopStatus(); !s) return s;
-        }
         scene.reset();
         im.scenes->noteRays(rays);
         stats.raysCast += rays;

@@ -73,7 +73,7 @@ public:
                     StageStats& stats, const char* reason = "witness ray where the GPU stage saw samples pass");
 
 private:
-    // `receiverSide`: after `searches`, the receiver-side pass over the bits still undecided.
+    // `receiverSide`: a bit of a large caster its own samples leave undecided is then searched through the receivers in its shadow.
     Status search(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch>& searches,
                   StageStats& stats, const char* reason, bool receiverSide = false);
     struct Impl;

@@ -5,6 +5,7 @@
 
 #include "core/light_reach.h"
 #include "core/mesh_index.h"
+#include "util/float_mode.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,6 +14,7 @@
 
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
+#include <tbb/parallel_for.h>
 
 namespace shadowcull::raycast {
 
@@ -215,6 +217,7 @@ struct Source {
     std::vector<std::array<glm::dvec3, 3>> tris;  // terrain: its triangles that may hold q
     std::vector<double> cumulative;               // terrain: by projected area
     uint32_t next = 0;                            // targets taken so far
+    std::vector<const std::vector<glm::dvec3>*> groupPoints;  // model: each group's points, once asked
 };
 
 // The receivers found so far, each with a weight, and the band's segments with theirs.
@@ -230,7 +233,7 @@ struct Receivers {
 void addTerrain(const Aim& aim, uint32_t k, Receivers& r) {
     const WindowObject& o = aim.w.objects[k];
     const Mesh& m = *o.mesh;
-    Source src{k, true, {}, {}, 0};
+    Source src{k, true, {}, {}, 0, {}};
     double area = 0.0;
     for (size_t t = 0; t < m.triangles.size(); ++t) {
         const std::array<glm::dvec3, 3> tri = o.lsTriangle(t);
@@ -393,7 +396,7 @@ void addModel(const Aim& aim, uint32_t k, const Footprint& ofp, Receivers& r) {
         if (low && o.lsBounds.max.y < *low - aim.tol) return;
     }
     const double projected = ofp.all ? 1.0 : (ofp.max.x - ofp.min.x) * (ofp.max.y - ofp.min.y);
-    r.sources.push_back({k, false, {}, {}, 0});
+    r.sources.push_back({k, false, {}, {}, 0, {}});
     r.weights.push_back(std::sqrt(std::max(projected, 0.0)) + 1e-12);
     if (!ruled) return;
     thread_local std::vector<std::array<glm::dvec3, 3>> ground;
@@ -403,10 +406,11 @@ void addModel(const Aim& aim, uint32_t k, const Footprint& ofp, Receivers& r) {
     addBand(aim, o, *low, ground, r);
 }
 
-// The receivers that may hold q. A point or spot light's q lies within its reach
-// (semantics.md): receivers, terrain triangles and band nodes wholly beyond it get no target.
-void findReceivers(const Aim& aim, Receivers& r) {
-    for (uint32_t k = 0; k < aim.w.objects.size(); ++k) {
+// The receivers among objects [begin, end) that may hold q, in object order. A point or
+// spot light's q lies within its reach (semantics.md): receivers, terrain triangles and band
+// nodes wholly beyond it get no target.
+void findReceiversIn(const Aim& aim, uint32_t begin, uint32_t end, Receivers& r) {
+    for (uint32_t k = begin; k < end; ++k) {
         const WindowObject& o = aim.w.objects[k];
         if (boxOutOfReach(aim.L, o.lsBounds)) continue;
         const auto oc = o.lsBounds.corners();
@@ -419,6 +423,34 @@ void findReceivers(const Aim& aim, Receivers& r) {
             addTerrain(aim, k, r);
         else
             addModel(aim, k, ofp, r);
+    }
+}
+
+// Every receiver of the window that may hold q, in object order: blocks of objects in
+// parallel (a terrain's receivers are hundreds of models near the ground, each with its
+// band: most of a receiver-side search's time, and a window has only a few such searches),
+// joined in block order, so the same list on any number of threads.
+void findReceivers(const Aim& aim, Receivers& r) {
+    constexpr uint32_t kBlock = 32;
+    const uint32_t n = uint32_t(aim.w.objects.size());
+    const uint32_t blocks = (n + kBlock - 1) / kBlock;
+    struct Part {
+        std::vector<Source> sources;
+        std::vector<double> weights, bandWeights;
+        std::vector<BandSegment> band;
+    };
+    std::vector<Part> parts(blocks);
+    tbb::parallel_for(uint32_t(0), blocks, [&](uint32_t b) {
+        const FloatModeScope ftz(FloatModeScope::Underflow::FlushToZero);  // as the calling task's
+        Part& part = parts[b];
+        Receivers pr{part.sources, part.weights, part.band, part.bandWeights};
+        findReceiversIn(aim, b * kBlock, std::min(n, (b + 1) * kBlock), pr);
+    });
+    for (Part& part : parts) {
+        for (Source& src : part.sources) r.sources.push_back(std::move(src));
+        r.weights.insert(r.weights.end(), part.weights.begin(), part.weights.end());
+        r.band.insert(r.band.end(), part.band.begin(), part.band.end());
+        r.bandWeights.insert(r.bandWeights.end(), part.bandWeights.begin(), part.bandWeights.end());
     }
 }
 
@@ -462,9 +494,13 @@ std::vector<glm::dvec3> drawTargets(const Aim& aim, Receivers& r, int budget, Gr
                 p = t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b;
                 onTerrain = true;
             } else {
-                // The model's groups in turn, each by its own spread points.
+                // The model's groups in turn, each by its own spread points (asked of the
+                // shared cache once per group: it takes a lock).
                 const uint32_t groups = uint32_t(std::max<size_t>(1, o.mesh->groups.size()));
-                const std::vector<glm::dvec3>& pts = samples.meshPoints(*o.mesh, s % groups);
+                if (src.groupPoints.empty()) src.groupPoints.assign(groups, nullptr);
+                const std::vector<glm::dvec3>*& known = src.groupPoints[s % groups];
+                if (!known) known = &samples.meshPoints(*o.mesh, s % groups);
+                const std::vector<glm::dvec3>& pts = *known;
                 if (pts.empty()) continue;
                 p = o.lsTransform.apply(pts[(s / groups) % pts.size()]);
             }
@@ -506,13 +542,11 @@ std::vector<glm::dvec3> receiverTargets(const BakeWindow& w, uint32_t object, ui
     // spread prefix, group_samples.h; no per-triangle work for the thousands of rocks a
     // terrain's shadow column holds), the band by segments where a model crosses the level
     // 3/4 of the tolerance under the ground.
-    // Scratch kept by the thread (the search calls this once per bit, from TBB tasks).
+    // Not scratch kept by the thread: while findReceivers waits for its blocks, this thread
+    // may run another search's blocks, or another search.
     std::vector<Source> sources;
-    thread_local std::vector<double> weights, bandWeights;
-    thread_local std::vector<BandSegment> band;
-    weights.clear();
-    bandWeights.clear();
-    band.clear();
+    std::vector<double> weights, bandWeights;
+    std::vector<BandSegment> band;
     Receivers receivers{sources, weights, band, bandWeights};
     findReceivers(aim, receivers);
     if (sources.empty()) return {};
