@@ -223,6 +223,12 @@ std::vector<StageTiming> StageRunner::timings() const {
 }
 
 Status StageRunner::bake(const BakeWindow& window, ChunkVerdicts& cv, std::vector<StageTiming>& timings) {
+    // The window's witness searches (the stage's and the later passes) share one Embree scene.
+    rays_.keepScene(window);
+    struct DropScene {
+        raycast::RaycastStage& rays;
+        ~DropScene() { rays.dropScene(); }
+    } dropScene{rays_};
     for (size_t s = 0; s < stages_.size(); ++s) {
         if (Status i = interrupted(); !i) return i;
         StageStats st;

@@ -5,6 +5,8 @@
 #include <unordered_set>
 #include <vector>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_for_each.h>
 
 #include "util/stop_request.h"
@@ -197,6 +199,78 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre, TerrainMeshes& ter
     return buildWindow(space, centre, chunks, terrainMeshes);
 }
 
+namespace {
+
+// One object of a window's chunks, before it is placed: its chunk file, the chunk's origin
+// relative to the window origin, and (terrain) its mesh.
+struct ObjectSlot {
+    const ChunkFile* file = nullptr;
+    ChunkCoord chunk;
+    const ChunkObject* object = nullptr;
+    bool centre = false;
+    glm::dvec3 lsChunk{0.0};
+    const Mesh* terrainMesh = nullptr;
+};
+
+// The objects of `chunks` in order, skipped ones included. Terrain meshes are made here,
+// one thread (terrainMeshes is shared by the windows).
+std::vector<ObjectSlot> objectSlots(const Space& space, ChunkCoord centre, const std::vector<ChunkCoord>& chunks, double oy,
+                                    TerrainMeshes& terrainMeshes) {
+    std::vector<ObjectSlot> slots;
+    for (ChunkCoord c : chunks) {
+        auto it = space.chunks.find(c);
+        if (it == space.chunks.end()) continue;
+        const int dx = c.x - centre.x, dz = c.z - centre.z;
+        // Chunk origin relative to the window origin: whole chunks, exact in double.
+        const glm::dvec3 lsChunk(double(dx) * space.settings.chunkSize, -oy, double(dz) * space.settings.chunkSize);
+        for (const ChunkObject& o : it->second.objects) {
+            ObjectSlot slot{&it->second, c, &o, dx == 0 && dz == 0, lsChunk, nullptr};
+            if (!o.skipped && o.kind == ChunkObject::Kind::Terrain) {
+                std::shared_ptr<const Mesh>& tm = terrainMeshes[o.heightfield.get()];
+                if (!tm) tm = std::make_shared<const Mesh>(o.heightfield->toMesh());
+                slot.terrainMesh = tm.get();
+            }
+            slots.push_back(slot);
+        }
+    }
+    return slots;
+}
+
+// The window object of a slot (not skipped): its mesh placed by the chunk's offset, and its
+// box, from the mesh's vertex tree: the box of every vertex a triangle uses (the same box
+// as mapping each triangle's corners), a few leaves per placement, bit for bit the loop's
+// box (core/mesh_index.h).
+WindowObject placeObject(const ObjectSlot& slot) {
+    const ChunkObject& o = *slot.object;
+    WindowObject wo;
+    wo.kind = o.kind;
+    wo.source = &o;
+    wo.chunk = slot.chunk;
+    wo.centre = slot.centre;
+    wo.label = objectLabel(*slot.file, o);
+    wo.castsShadow = o.castsShadow;
+    if (o.kind == ChunkObject::Kind::Terrain) {
+        wo.mesh = slot.terrainMesh;
+        wo.heightfield = o.heightfield.get();
+        wo.lsTerrainOrigin = slot.lsChunk;
+        wo.lsTransform.rows[3] = slot.lsChunk;
+    } else {
+        wo.mesh = o.mesh.get();
+        wo.lsTransform = o.transform;
+        // Translation: chunk-local + chunk offset, both relative to the window.
+        wo.lsTransform.rows[3] = o.transform.rows[3] + slot.lsChunk;
+        wo.flipsWinding = o.transform.determinant() < 0;
+    }
+    const VertexTree& used = *vertexIndex(*wo.mesh).used;
+    if (auto box = placedBox(used, wo.mesh->positions, wo.lsTransform))
+        wo.lsBounds = Aabb{box->first, box->second};
+    else if (!used.empty())
+        wo.lsBounds = lsUsedBoundsByLoop(wo);  // a zero coordinate: its sign is the loop's
+    return wo;
+}
+
+}  // namespace
+
 BakeWindow buildWindow(const Space& space, ChunkCoord centre, const std::vector<ChunkCoord>& chunks,
                        TerrainMeshes& terrainMeshes) {
     const SpaceSettings& S = space.settings;
@@ -260,62 +334,37 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre, const std::vector<
     const double oy = yMin <= yMax ? std::round(0.5 * (yMin + yMax)) : 0.0;
     w.wsOrigin = glm::dvec3(double(centre.x) * S.chunkSize, oy, double(centre.z) * S.chunkSize);
 
-    {
-        for (ChunkCoord c : chunks) {
-            const int dx = c.x - centre.x, dz = c.z - centre.z;
-            auto it = space.chunks.find(c);
-            if (it == space.chunks.end()) continue;
-            const ChunkFile& cf = it->second;
-            // Chunk origin relative to the window origin: whole chunks, exact in double.
-            const glm::dvec3 lsChunk(double(dx) * S.chunkSize, -oy, double(dz) * S.chunkSize);
-            for (const ChunkObject& o : cf.objects) {
-                // A window of 200,000 objects takes seconds: a stop request leaves it
-                // incomplete, for the caller to notice (see window.h).
-                if (w.objects.size() % 1024 == 0 && stopRequested()) return w;
-                if (o.skipped) {
-                    ++w.skippedObjects;
-                    continue;
-                }
-                WindowObject wo;
-                wo.kind = o.kind;
-                wo.source = &o;
-                wo.chunk = c;
-                wo.centre = dx == 0 && dz == 0;
-                wo.label = objectLabel(cf, o);
-                wo.castsShadow = o.castsShadow;
-                w.hasNonCasters |= !o.castsShadow;
-                if (o.kind == ChunkObject::Kind::Terrain) {
-                    std::shared_ptr<const Mesh>& tm = terrainMeshes[o.heightfield.get()];
-                    if (!tm) tm = std::make_shared<const Mesh>(o.heightfield->toMesh());
-                    wo.mesh = tm.get();
-                    wo.heightfield = o.heightfield.get();
-                    wo.lsTerrainOrigin = lsChunk;
-                    wo.lsTransform.rows[3] = lsChunk;
-                    w.hasTerrain = true;
-                    w.terrainObjects.push_back(w.objects.size());
-                } else {
-                    wo.mesh = o.mesh.get();
-                    wo.lsTransform = o.transform;
-                    // Translation: chunk-local + chunk offset, both relative to the window.
-                    wo.lsTransform.rows[3] = o.transform.rows[3] + lsChunk;
-                    wo.flipsWinding = o.transform.determinant() < 0;
-                    for (const PrimitiveGroup& g : wo.mesh->groups) w.hasAlphaTested |= g.alphaTested;
-                }
-                // The box of every vertex a triangle uses (the same box as mapping each
-                // triangle's corners), from the mesh's vertex tree: a few leaves per placement,
-                // bit for bit the loop's box (core/mesh_index.h).
-                const VertexTree& used = *vertexIndex(*wo.mesh).used;
-                if (auto box = placedBox(used, wo.mesh->positions, wo.lsTransform))
-                    wo.lsBounds = Aabb{box->first, box->second};
-                else if (!used.empty())
-                    wo.lsBounds = lsUsedBoundsByLoop(wo);  // a zero coordinate: its sign is the loop's
-                if (!wo.lsBounds.empty()) {
-                    w.lsBounds.extend(wo.lsBounds);
-                    if (wo.centre) w.lsCentreBounds.extend(wo.lsBounds);
-                }
-                w.objects.push_back(std::move(wo));
-            }
+    // The window's objects in chunk order, each placed on its own (in parallel: a
+    // whole-space window holds thousands, each with its box from its mesh's tree), then
+    // joined in that order.
+    const std::vector<ObjectSlot> slots = objectSlots(space, centre, chunks, oy, terrainMeshes);
+    std::vector<WindowObject> placed(slots.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, slots.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+        // A window of 200,000 objects takes seconds: a stop request leaves it incomplete,
+        // for the caller to notice (see window.h).
+        if (stopRequested()) return;
+        for (size_t k = r.begin(); k < r.end(); ++k)
+            if (!slots[k].object->skipped) placed[k] = placeObject(slots[k]);
+    });
+    if (stopRequested()) return w;
+    for (size_t k = 0; k < slots.size(); ++k) {
+        if (slots[k].object->skipped) {
+            ++w.skippedObjects;
+            continue;
         }
+        WindowObject& wo = placed[k];
+        w.hasNonCasters |= !wo.castsShadow;
+        if (wo.kind == ChunkObject::Kind::Terrain) {
+            w.hasTerrain = true;
+            w.terrainObjects.push_back(w.objects.size());
+        } else {
+            for (const PrimitiveGroup& g : wo.mesh->groups) w.hasAlphaTested |= g.alphaTested;
+        }
+        if (!wo.lsBounds.empty()) {
+            w.lsBounds.extend(wo.lsBounds);
+            if (wo.centre) w.lsCentreBounds.extend(wo.lsBounds);
+        }
+        w.objects.push_back(std::move(wo));
     }
     for (Light L : S.lights) {
         L.position -= w.wsOrigin;  // window-local

@@ -547,10 +547,31 @@ std::vector<std::string> SpaceSource::inputFiles() const {
 Status SpaceSource::load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
     // A window of large chunks takes seconds to load: a signal stops it between them.
     if (Status s = stopStatus(); !s) return s;
-    ChunkEntry& entry = chunks_.at(c);
     std::vector<Diagnostic> ignored;  // the scan (or the plan) gave these
-    Expected<ChunkFile> cf = readChunkFile(entry.path, c, ignored);
+    return adopt(c, readChunkFile(chunks_.at(c).path, c, ignored), space, lateDiagnostics);
+}
+
+Status SpaceSource::load(const std::vector<ChunkCoord>& cs, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
+    if (cs.size() < 2) return cs.empty() ? Status::ok() : load(cs[0], space, lateDiagnostics);
+    if (Status s = stopStatus(); !s) return s;
+    std::vector<std::optional<Expected<ChunkFile>>> read(cs.size());
+    tbb::parallel_for(size_t(0), cs.size(), [&](size_t k) {
+        if (stopRequested()) return;  // left unread: stopStatus below
+        std::vector<Diagnostic> ignored;  // the scan (or the plan) gave these
+        read[k].emplace(readChunkFile(chunks_.at(cs[k]).path, cs[k], ignored));
+    });
+    for (size_t k = 0; k < cs.size(); ++k) {
+        if (Status s = stopStatus(); !s) return s;
+        if (Status s = adopt(cs[k], std::move(*read[k]), space, lateDiagnostics); !s) return s;
+    }
+    return Status::ok();
+}
+
+// The rest of load() once chunk `c`'s file is read: its resources resolved, checked against
+// the scan (or the plan), put into `space`.
+Status SpaceSource::adopt(ChunkCoord c, Expected<ChunkFile> cf, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
     if (!cf) return cf.error();
+    ChunkEntry& entry = chunks_.at(c);
     // A planned source's first load stands for the scan: the plan's summary is checked
     // below, and these bytes are what a later load and the write compare with.
     const bool firstPlannedLoad = planned_ && loadedOnce_.insert(c).second;
@@ -606,9 +627,10 @@ WindowSequence::WindowSequence(SpaceSource& source, std::vector<ChunkCoord> cent
 std::vector<ChunkCoord> WindowSequence::window(size_t k) const { return planner_.plan(centres_[k]).chunks; }
 
 Status WindowSequence::enter(size_t k, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
+    std::vector<ChunkCoord> missing;
     for (ChunkCoord c : window(k))
-        if (!space.chunks.count(c))
-            if (Status s = source_.load(c, space, lateDiagnostics); !s) return s;
+        if (!space.chunks.count(c)) missing.push_back(c);
+    if (Status s = source_.load(missing, space, lateDiagnostics); !s) return s;
     peak_ = std::max(peak_, space.chunks.size());
     return Status::ok();
 }

@@ -123,6 +123,10 @@ public:
     // load stand for the scan's. A stop request (util/stop_request.h) is an Interrupted
     // error before anything is read.
     Status load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics);
+    // load() of each of `cs` in turn, their files read and parsed in parallel first (a
+    // window that slides brings a few chunks at once); the same chunks, errors (the first
+    // in `cs` order) and warnings as one load() after another.
+    Status load(const std::vector<ChunkCoord>& cs, Space& space, std::vector<Diagnostic>& lateDiagnostics);
     // Drops chunk `c` from `space.chunks`, then the meshes and heightfields no loaded chunk
     // uses any more (with their terrain meshes). Returns the meshes that go: whatever is
     // keyed by their address (the stages' caches) must forget them before the caller lets
@@ -148,6 +152,8 @@ private:
     ChunkEntry entryOf(const ChunkFile& cf, ChunkCoord coord) const;
     // A planned source's check of a chunk it loads against the plan's summary.
     Status checkAgainstPlan(ChunkCoord c, const ChunkFile& cf);
+    // load() once the file is read: resolved, checked, put into the space.
+    Status adopt(ChunkCoord c, Expected<ChunkFile> cf, Space& space, std::vector<Diagnostic>& lateDiagnostics);
     const std::string& fullPath(const std::string& resource) const;  // resource root / resource, normalised
 
     SpaceSettings settings_;

@@ -63,10 +63,13 @@ struct RaycastStage::Impl {
     RTCDevice device = nullptr;
     std::unique_ptr<EmbreeScenes> scenes;  // prototypes kept for the whole bake
     std::unique_ptr<GroupSampleCache> samples;  // per mesh, for the whole bake
+    const BakeWindow* keptFor = nullptr;  // keepScene's window
+    std::optional<WindowScene> kept;      // its scene, once a search built it
     std::mutex errorMutex;
     std::string lastError;
 
     ~Impl() {
+        kept.reset();
         scenes.reset();  // before the device they belong to
         if (device) rtcReleaseDevice(device);
     }
@@ -99,7 +102,18 @@ RaycastStage::RaycastStage(RaycastOptions options) : impl_(std::make_unique<Impl
 
 RaycastStage::~RaycastStage() = default;
 
+void RaycastStage::keepScene(const BakeWindow& window) {
+    dropScene();
+    impl_->keptFor = &window;
+}
+
+void RaycastStage::dropScene() {
+    impl_->kept.reset();
+    impl_->keptFor = nullptr;
+}
+
 void RaycastStage::forgetMeshes(const std::unordered_set<const Mesh*>& meshes) {
+    dropScene();  // it places them
     if (impl_->scenes) impl_->scenes->forget(meshes);
     if (impl_->samples) impl_->samples->forget(meshes);
 }
@@ -591,8 +605,12 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
     if (searches.empty()) return Status::ok();  // nothing undecided: nothing for the receiver side either
 
     try {
-        WindowScene scene = im.scenes->buildWindow(window);
+        WindowScene own;  // this search's, unless keepScene's window holds one
+        const bool keep = im.keptFor == &window;
+        if (keep && !im.kept) im.kept = im.scenes->buildWindow(window);
+        if (!keep) own = im.scenes->buildWindow(window);
         if (Status s = im.takeError(); !s) return s;
+        const WindowScene& scene = keep ? *im.kept : own;
         const Tracer tracer = makeTracer(window, scene, im.opt);
         std::atomic<uint64_t> rays{0}, kept{0}, examined{0};
         SearchPass pass{tracer, window, cv, im.opt, *im.samples, rays, kept, examined};
@@ -600,7 +618,7 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
             pass.receiverSideWhy = "witness ray through a receiver in the group's shadow (receiver-side search)";
         pass.run(searches, reason, true);
         if (Status s = stopStatus(); !s) return s;
-        scene.reset();
+        own.reset();
         im.scenes->noteRays(rays);
         stats.raysCast += rays;
         stats.provedKept += kept;

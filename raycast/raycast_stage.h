@@ -72,6 +72,13 @@ public:
     Status searchAt(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch> searches,
                     StageStats& stats, const char* reason = "witness ray where the GPU stage saw samples pass");
 
+    // From keepScene(w) until dropScene(), every search on `w` traces the Embree scene the
+    // first one builds (a window's later searches, after the geometry and GPU stages, each
+    // rebuilt it: about 2 ms a time for a whole-space window of 2,000 objects). `w` must not
+    // change in between. Without keepScene, each search builds its own.
+    void keepScene(const BakeWindow& window);
+    void dropScene();
+
 private:
     // `receiverSide`: a bit of a large caster its own samples leave undecided is then searched through the receivers in its shadow.
     Status search(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch>& searches,
