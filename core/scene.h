@@ -124,6 +124,12 @@ struct ChunkObject {
     std::string skipReason;
     std::shared_ptr<const Mesh> mesh;              // models, when loaded
     std::shared_ptr<const Heightfield> heightfield;  // terrain, when loaded
+    // The box of the vertices its triangles use under the transform's linear part alone
+    // (core/window.cpp, placeObject): made by the first window that places the object, and
+    // valid while it lives (its mesh and transform are never changed). Empty when that box
+    // has a zero coordinate (whose sign the windows' own loop decides).
+    mutable std::optional<std::pair<glm::dvec3, glm::dvec3>> linearBox;
+    mutable bool linearBoxMade = false;
 };
 
 struct ChunkFile {

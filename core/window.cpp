@@ -236,6 +236,33 @@ std::vector<ObjectSlot> objectSlots(const Space& space, ChunkCoord centre, const
     return slots;
 }
 
+// The window-local box of every vertex a triangle of `wo` uses: the box of mapping each
+// triangle's corners. Its coordinates are extremes over the vertices of fl(L(v) + t), L the
+// transform's linear part as RowTransform::apply computes it and t the window's translation
+// added last; rounding a sum with the same t is monotone, so they are fl(extreme of L(v) +
+// t): the object's box under L alone (made once, ChunkObject::linearBox) moved by t, bit
+// for bit what the mesh's vertex tree gives per window (core/mesh_index.h, placedBox). A
+// zero coordinate, whose sign the loop over the vertices decides, takes that loop.
+Aabb lsObjectBounds(const ChunkObject& o, const WindowObject& wo) {
+    const VertexTree& used = *vertexIndex(*wo.mesh).used;
+    if (used.empty()) return {};
+    if (!o.linearBoxMade) {
+        RowTransform linear = wo.lsTransform;
+        linear.rows[3] = glm::dvec3(0.0);
+        o.linearBox = placedBox(used, wo.mesh->positions, linear);
+        o.linearBoxMade = true;
+    }
+    if (o.linearBox) {
+        const glm::dvec3& t = wo.lsTransform.rows[3];
+        const Aabb moved{o.linearBox->first + t, o.linearBox->second + t};
+        bool zero = false;
+        for (int a = 0; a < 3; ++a) zero = zero || moved.min[a] == 0.0 || moved.max[a] == 0.0;
+        if (!zero) return moved;
+    }
+    if (auto box = placedBox(used, wo.mesh->positions, wo.lsTransform)) return Aabb{box->first, box->second};
+    return lsUsedBoundsByLoop(wo);  // a zero coordinate: its sign is the loop's
+}
+
 // The window object of a slot (not skipped): its mesh placed by the chunk's offset, and its
 // box, from the mesh's vertex tree: the box of every vertex a triangle uses (the same box
 // as mapping each triangle's corners), a few leaves per placement, bit for bit the loop's
@@ -261,11 +288,7 @@ WindowObject placeObject(const ObjectSlot& slot) {
         wo.lsTransform.rows[3] = o.transform.rows[3] + slot.lsChunk;
         wo.flipsWinding = o.transform.determinant() < 0;
     }
-    const VertexTree& used = *vertexIndex(*wo.mesh).used;
-    if (auto box = placedBox(used, wo.mesh->positions, wo.lsTransform))
-        wo.lsBounds = Aabb{box->first, box->second};
-    else if (!used.empty())
-        wo.lsBounds = lsUsedBoundsByLoop(wo);  // a zero coordinate: its sign is the loop's
+    wo.lsBounds = lsObjectBounds(o, wo);
     return wo;
 }
 

@@ -319,6 +319,86 @@ TEST(MeshIndex, VertexTreesMirrorTheTriangleTreeExactlyAndCompletely) {
 
 // A zero coordinate: -0 and +0 compare equal and the loop keeps the first it met, so the
 // tree hands the box back to the loop (which gives the loop's sign).
+// A window's object boxes (buildWindow: each object's box under its transform's linear part,
+// made once, moved by the window's translation) are the loop's over the placed vertices bit
+// for bit, in every window that holds the object, with windows centred near and 100 km from
+// the origin, and where the window's translation puts a box coordinate exactly at zero (the
+// loop's sign of zero).
+TEST(MeshIndex, WindowBoxesAreTheLoopsInEveryWindow) {
+    std::mt19937 rng(41);
+    auto mesh = std::make_shared<const Mesh>(jaggedSheet(20, rng));
+    const MeshVertexIndex& index = vertexIndex(*mesh);
+    for (const int far : {0, 1000}) {  // chunks of 100 m: the origin, and 100 km out
+        Space space;
+        space.settings.chunkSize = 100.0;
+        for (int cx = 0; cx < 3; ++cx)
+            for (int cz = 0; cz < 3; ++cz) {
+                const ChunkCoord c{far + cx, far + cz};
+                ChunkFile& cf = space.chunks[c];
+                cf.coord = c;
+                cf.path = "c" + std::to_string(cx) + std::to_string(cz);
+                for (int k = 0; k < 6; ++k) {
+                    ChunkObject o;
+                    o.mesh = mesh;
+                    o.elementIndex = k;
+                    o.transform = randomTransform(rng, 0.0);
+                    o.transform.rows[3] = glm::dvec3(50.0 + 40.0 * (rng() % 2 ? 1 : -1) * 0.5, 3.0, 50.0);
+                    cf.objects.push_back(o);
+                }
+            }
+        TerrainMeshes terrains;
+        std::vector<ChunkCoord> all;
+        for (const auto& [c, cf] : space.chunks) all.push_back(c);
+        for (int round = 0; round < 2; ++round)  // the second: every object's linear box made
+            for (const ChunkCoord centre : all) {
+                const BakeWindow w = buildWindow(space, centre, all, terrains);
+                ASSERT_EQ(w.objects.size(), all.size() * 6);
+                for (const WindowObject& o : w.objects) {
+                    Aabb loop;
+                    std::vector<char> used(mesh->positions.size(), 0);
+                    for (const auto& tri : mesh->triangles)
+                        for (uint32_t v : tri) used[v] = 1;
+                    for (size_t v = 0; v < used.size(); ++v)
+                        if (used[v]) loop.extend(o.lsTransform.apply(mesh->positions[v]));
+                    expectSameBox(o.lsBounds, loop, "far " + std::to_string(far) + " " + o.label);
+                }
+            }
+    }
+    EXPECT_FALSE(index.used->empty());
+
+    // A box coordinate at zero: a triangle from y = 1 to 11 in chunk (0, 0) sets the
+    // window's vertical origin at 6 m (the middle, rounded), and the same triangle lifted by
+    // 5 m in chunk (1, 0) then has its lowest y at exactly 0 in that window (its box under
+    // the linear part alone has none).
+    auto tri = std::make_shared<Mesh>();
+    tri->positions = {{-0.0, 1.0, 1.0}, {2.0, 11.0, 1.0}, {1.0, 1.0, -0.0}};
+    tri->triangles = {{0, 1, 2}};
+    tri->triangleGroup = {0};
+    tri->groups.resize(1);
+    Space space;
+    space.settings.chunkSize = 100.0;
+    for (int cx = 0; cx < 2; ++cx) {
+        ChunkFile& cf = space.chunks[{cx, 0}];
+        cf.coord = {cx, 0};
+        ChunkObject o;
+        o.mesh = tri;
+        o.transform.rows[3] = glm::dvec3(10.0, 5.0 * cx, 10.0);
+        cf.objects.push_back(o);
+    }
+    TerrainMeshes terrains;
+    const std::vector<ChunkCoord> both{{0, 0}, {1, 0}};
+    for (int round = 0; round < 2; ++round) {
+        const BakeWindow w = buildWindow(space, {0, 0}, both, terrains);
+        ASSERT_EQ(w.objects.size(), 2u);
+        EXPECT_TRUE(sameBits(w.objects[1].lsBounds.min.y, 0.0));
+        for (const WindowObject& o : w.objects) {
+            Aabb loop;
+            for (const glm::dvec3& p : tri->positions) loop.extend(o.lsTransform.apply(p));
+            expectSameBox(o.lsBounds, loop, "zero " + std::to_string(round));
+        }
+    }
+}
+
 TEST(MeshIndex, ZeroCoordinatesAreTheLoopsToo) {
     Mesh m;
     m.positions = {{0.0, 1.0, 2.0}, {-0.0, -1.0, -1.0}, {0.0, 2.0, 2.0}, {1.0, 1.0, 2.0}};
