@@ -17,9 +17,11 @@ Status GpuConfirmStage::ensureGl() {
     if (!s) return s.error();
     g->session = std::move(*s);
     const GlApi& gl = g->session->gl;
-    Expected<GLuint> raster = gl.program(kConfirmRasterVs, nullptr, kConfirmRasterFs);
-    if (!raster) return raster.error();
-    g->raster = *raster;
+    for (int pass = 0; pass < Gl::kPasses; ++pass) {
+        Expected<GLuint> raster = gl.program(kConfirmRasterVs, nullptr, confirmRasterFs(pass).c_str());
+        if (!raster) return raster.error();
+        g->raster[pass] = *raster;
+    }
     Expected<GLuint> resolve = gl.program(kConfirmRectVs, nullptr, kConfirmResolveFs);
     if (!resolve) return resolve.error();
     g->resolve = *resolve;

@@ -15,7 +15,10 @@ namespace shadowcull::gpu {
 
 struct GpuConfirmStage::Gl {
     std::unique_ptr<GlSession> session;
-    GLuint raster = 0, resolve = 0, clear = 0;
+    // The raster programs, one per pass (Pass), then the occluders' resolve and clear.
+    enum Pass { kOccluders, kReceivers, kCount, kRecord, kPasses };
+    GLuint raster[kPasses] = {0, 0, 0, 0};
+    GLuint resolve = 0, clear = 0;
     RenderTarget work, occ, recv;
     GLuint vao = 0, vbo = 0, rectVao = 0, rectVbo = 0;
     GLuint ssbo[4] = {0, 0, 0, 0};  // counts, records, slots, passed pieces (see kConfirmRasterFs)

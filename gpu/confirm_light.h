@@ -143,7 +143,6 @@ struct GpuConfirmStage::LightRun {
     uint32_t cap = 0;                     // records per query
     std::vector<Slot> slots;              // per query
     std::vector<uint32_t> recordsWritten; // per query, over the views so far
-    GLint uMode = -1;                     // the raster program's pass selector
 
 private:
     // Window-local vertices, computed where they are needed (the same bits as

@@ -45,7 +45,10 @@ flat in vec4 fPlane2;  // b, zmin, zmax, planeValid
 flat in vec4 fMisc;    // dilate, margin, kind
 flat in uint fId;
 flat in uint fPiece;
-uniform int uMode;          // 0 occluder sheet, 1 receivers, 2 caster query (count and record), 3 record only
+// The pass: 0 occluder sheet, 1 receivers, 2 caster query (count and record), 3 record only.
+// A constant (PASS_MODE is defined before this source), so that each pass's program holds
+// only its own branch: llvmpipe runs both sides of a branch on a uniform for every fragment.
+const int kMode = PASS_MODE;
 uniform bool uPerspective;  // s = 1/z (else s = depth)
 uniform float uDepthEps;    // metres, absolute depth margin
 uniform float uSizeMax;     // view size in pixels (bounds float rounding of coordinates)
@@ -130,7 +133,7 @@ bool recorded(ivec2 pix) {
 void main() {
     vec2 c = gl_FragCoord.xy;
     float m = fMisc.y;
-    if (uMode == 0) {
+    if (kMode == 0) {
         if (!overlaps(c, 0.5, m)) discard;
         if (fMisc.z > 0.5) {  // a crack edge touches the pixel: this sheet does not cover it whole
             oValue = vec4(BIG, 0.0, 0.0, 0.0);
@@ -145,7 +148,7 @@ void main() {
                       robustInside(c + vec2(-0.25, 0.25), m) || robustInside(c + vec2(0.25, -0.25), m) ||
                       robustInside(c + vec2(-0.25, -0.25), m);
         oValue = vec4(zhi, inside ? 1.0 : 0.0, 0.0, 0.0);
-    } else if (uMode == 1) {
+    } else if (kMode == 1) {
         float h = 0.5 + fMisc.x;
         if (!overlaps(c, h, m)) discard;
         float zlo, zhi;
@@ -161,9 +164,9 @@ void main() {
         float rec = texelFetch(uRecv, pix, 0).r;
         bool lit = zlo <= occ;
         bool behind = uAnyReceiver || rec > zlo + uBias;
-        if (uMode == 2 && lit) atomicAdd(counts[2u * fId], 1u);
+        if (kMode == 2 && lit) atomicAdd(counts[2u * fId], 1u);
         if (lit && behind) {
-            if (uMode == 2) {
+            if (kMode == 2) {
                 atomicAdd(counts[2u * fId + 1u], 1u);
                 passedPiece[fPiece] = 1u;
             }
@@ -176,6 +179,12 @@ void main() {
     }
 }
 )";
+
+std::string confirmRasterFs(int pass) {
+    std::string source = kConfirmRasterFs;
+    source.insert(source.find('\n') + 1, "#define PASS_MODE " + std::to_string(pass) + "\n");  // after #version
+    return source;
+}
 
 // The sheets' pixel rectangles, as two triangles each (pixel coordinates).
 const char* const kConfirmRectVs = R"(#version 430 core

@@ -280,17 +280,18 @@ void GpuConfirmStage::LightRun::setUpView(size_t vi, const ViewDraw& d) {
         gl.UseProgram(p);
         gl.Uniform2f(gl.uniform(p, "uSize"), float(view.width), float(view.height));
     }
-    const GLuint prog = gpu.raster;
-    gl.UseProgram(prog);
-    gl.Uniform2f(gl.uniform(prog, "uSize"), float(view.width), float(view.height));
-    gl.Uniform1f(gl.uniform(prog, "uSizeMax"), float(std::max(view.width, view.height)));
-    gl.Uniform1i(gl.uniform(prog, "uPerspective"), persp ? 1 : 0);
-    gl.Uniform1f(gl.uniform(prog, "uDepthEps"), float(vp.depthEps));
-    gl.Uniform1f(gl.uniform(prog, "uBias"), float(biasEff));
-    gl.Uniform1i(gl.uniform(prog, "uAnyReceiver"), anyReceiver ? 1 : 0);
-    gl.Uniform1ui(gl.uniform(prog, "uRecordCap"), cap);
-    gl.Uniform1ui(gl.uniform(prog, "uView"), uint32_t(vi));
-    uMode = gl.uniform(prog, "uMode");
+    // Uniforms a pass's program does not use are gone from it (location -1: ignored).
+    for (const GLuint prog : gpu.raster) {
+        gl.UseProgram(prog);
+        gl.Uniform2f(gl.uniform(prog, "uSize"), float(view.width), float(view.height));
+        gl.Uniform1f(gl.uniform(prog, "uSizeMax"), float(std::max(view.width, view.height)));
+        gl.Uniform1i(gl.uniform(prog, "uPerspective"), persp ? 1 : 0);
+        gl.Uniform1f(gl.uniform(prog, "uDepthEps"), float(vp.depthEps));
+        gl.Uniform1f(gl.uniform(prog, "uBias"), float(biasEff));
+        gl.Uniform1i(gl.uniform(prog, "uAnyReceiver"), anyReceiver ? 1 : 0);
+        gl.Uniform1ui(gl.uniform(prog, "uRecordCap"), cap);
+        gl.Uniform1ui(gl.uniform(prog, "uView"), uint32_t(vi));
+    }
     gl.Viewport(0, 0, view.width, view.height);
     gl.Enable(GL_SCISSOR_TEST);
     const PixelRect& roi = vp.roi;
@@ -320,8 +321,7 @@ void GpuConfirmStage::LightRun::drawOccluders(const ViewDraw& d) {
         gl.BindFramebuffer(GL_FRAMEBUFFER, gpu.work.fbo);
         gl.Enable(GL_BLEND);
         gl.BlendEquation(GL_MAX);
-        gl.UseProgram(gpu.raster);
-        gl.Uniform1i(uMode, 0);
+        gl.UseProgram(gpu.raster[Gl::kOccluders]);
         gl.BindVertexArray(gpu.vao);
         drawPieces(d.batchRange[b].first, d.batchRange[b].second);
         gl.BindFramebuffer(GL_FRAMEBUFFER, gpu.occ.fbo);
@@ -348,8 +348,7 @@ void GpuConfirmStage::LightRun::drawReceivers(const ViewDraw& d) {
     const float nothing[4] = {-kBig, 0, 0, 0};
     gl.ClearBufferfv(GL_COLOR, 0, nothing);
     gl.BlendEquation(GL_MAX);
-    gl.UseProgram(gpu.raster);
-    gl.Uniform1i(uMode, 1);
+    gl.UseProgram(gpu.raster[Gl::kReceivers]);
     gl.BindVertexArray(gpu.vao);
     drawPieces(d.recvFirst, d.castFirst - d.recvFirst);
 }
@@ -366,7 +365,7 @@ void GpuConfirmStage::LightRun::drawCasters(const ViewDraw& d) {
     gl.BlendEquation(GL_FUNC_ADD);
     gl.BindFramebuffer(GL_FRAMEBUFFER, gpu.work.fbo);
     gl.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
-    gl.Uniform1i(uMode, 2);
+    gl.UseProgram(gpu.raster[Gl::kCount]);
     gl.ActiveTexture(GL_TEXTURE0);
     gl.BindTexture(GL_TEXTURE_2D, gpu.occ.colour[0]);
     gl.ActiveTexture(GL_TEXTURE1);
@@ -383,7 +382,7 @@ void GpuConfirmStage::LightRun::drawCasters(const ViewDraw& d) {
     }
     gl.BindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, gpu.ssbo[3]);
     drawPieces(d.castFirst, d.end - d.castFirst);
-    gl.Uniform1i(uMode, 3);  // again if needed: records only, the counts are complete
+    gl.UseProgram(gpu.raster[Gl::kRecord]);  // again if needed: records only, the counts are complete
     GLsizei again = -1;      // caster pieces that passed, copied after the view's pieces
     while (settleSlots()) {
         if (again < 0) {

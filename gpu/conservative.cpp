@@ -137,6 +137,44 @@ bool PieceBuilder::clipsAway(const glm::dvec3* pts, size_t n) const {
     return out[0] || out[1] || out[2] || out[3] || out[4];
 }
 
+namespace {
+
+// The cover of a segment or a thin triangle (whose pushed-out triangle is no smaller than
+// its box): the rectangle along its longest edge around it, widened by h (L-infinity) on
+// every side. A point q within h (L-infinity) of a point p of the piece has
+// |(q - p) . u| <= h (|ux| + |uy|) along any unit u, so it lies in the piece's extent
+// along the edge direction u and along its normal, each widened by that much: the
+// rectangle holds every pixel centre the box would. A long diagonal crack segment's box
+// is about its length squared / 2 pixels, this rectangle about 3 times its length. False
+// (and nothing written) when it is not smaller than the box.
+bool orientedCover(const glm::dvec2 P[3], double h, double boxArea, float cover[8]) {
+    int longest = -1;
+    double len2 = 0;
+    for (int k = 0; k < 3; ++k) {
+        const glm::dvec2 e = P[(k + 1) % 3] - P[k];
+        if (glm::dot(e, e) > len2) len2 = glm::dot(e, e), longest = k;
+    }
+    if (longest < 0) return false;
+    const glm::dvec2 u = (P[(longest + 1) % 3] - P[longest]) / std::sqrt(len2), n(-u.y, u.x);
+    double t0 = 1e300, t1 = -1e300, s0 = 1e300, s1 = -1e300;
+    for (int k = 0; k < 3; ++k) {
+        const double t = glm::dot(u, P[k]), sv = glm::dot(n, P[k]);
+        t0 = std::min(t0, t), t1 = std::max(t1, t), s0 = std::min(s0, sv), s1 = std::max(s1, sv);
+    }
+    const double e = h * (std::abs(u.x) + std::abs(u.y));  // the same along n (u turned by 90 degrees)
+    t0 -= e, t1 += e, s0 -= e, s1 += e;
+    const double area = (t1 - t0) * (s1 - s0);
+    if (!(std::isfinite(area) && area < 0.8 * boxArea)) return false;
+    const double ts[4][2] = {{t0, s0}, {t1, s0}, {t0, s1}, {t1, s1}};  // strip order, as the box's
+    for (int k = 0; k < 4; ++k) {
+        const glm::dvec2 c = u * ts[k][0] + n * ts[k][1];
+        cover[2 * k] = float(c.x), cover[2 * k + 1] = float(c.y);
+    }
+    return true;
+}
+
+}  // namespace
+
 void PieceBuilder::emit(const glm::dvec3* v, float dilatePx, float kind, uint32_t id,
                         std::vector<RasterPiece>& out) const {
     glm::dvec2 P[3];
@@ -209,7 +247,7 @@ void PieceBuilder::emit(const glm::dvec3* v, float dilatePx, float kind, uint32_
             for (int k = 0; k < 4; ++k) r.cover[2 * k] = float(corners[k].x), r.cover[2 * k + 1] = float(corners[k].y);
         }
     }
-    if (!triangleCover) {
+    if (!triangleCover && !orientedCover(P, h, boxArea, r.cover)) {
         const double x0 = minX - h, y0 = minY - h, x1 = maxX + h, y1 = maxY + h;
         const double corners[8] = {x0, y0, x1, y0, x0, y1, x1, y1};
         for (int k = 0; k < 8; ++k) r.cover[k] = float(corners[k]);

@@ -17,6 +17,9 @@
 // Random worlds, pruning, the window's edges and the render: gpu_random_test.cpp.
 // Every test that needs GL skips, saying why, where no offscreen context can be made.
 
+#include <random>
+
+#include "gpu/conservative.h"
 #include "tests/support/gpu_scenes.h"
 
 using namespace shadowcull;
@@ -509,6 +512,67 @@ TEST(GpuConfirm, OnlyLooksAtUndecidedBitsAndHandsOverPixelsOnTheGroup) {
         EXPECT_LE(nearest, 2 * p.footprint) << p.px << "," << p.py;
         EXPECT_NEAR(glm::length(p.lsDirection - glm::normalize(kTiltedSun)), 0.0, 1e-12);
     }
+}
+
+// The shape drawn for a piece (RasterPiece::cover) holds every pixel centre whose square,
+// widened as the fragment shader's widest test does (0.5 + dilation + margin), touches the
+// piece: the fragments a pass keeps do not depend on the cover. Long diagonal segments
+// (crack edges), slivers and ordinary triangles, with and without a dilation, in
+// double against the covers' float corners. (CPU only: no GL.)
+TEST(GpuConservative, EveryCoverHoldsThePixelsItsPieceCanTouch) {
+    gpu::LightView view;  // orthographic straight down: pixel (x, y) = (p.x, -p.z)
+    view.u0 = 0, view.u1 = 512, view.v0 = 0, view.v1 = 512, view.w0 = -10, view.w1 = 10;
+    view.width = view.height = 512;
+    const gpu::PieceBuilder pb(view, 0.0);
+    std::mt19937 rng(38);
+    std::uniform_real_distribution<double> at(-20.0, 530.0), len(0.0, 1.0);
+    auto point = [&](double x, double y) { return glm::dvec3(x, 0.1 * len(rng), -y); };
+    auto insideQuad = [](const float* c, double x, double y) {  // strip order 0, 1, 3, 2: convex
+        const int o[4] = {0, 1, 3, 2};
+        double sign = 0;
+        for (int k = 0; k < 4; ++k) {
+            const float *a = c + 2 * o[k], *b = c + 2 * o[(k + 1) % 4];
+            const double cross = (double(b[0]) - a[0]) * (y - a[1]) - (double(b[1]) - a[1]) * (x - a[0]);
+            if (cross == 0) continue;
+            if (sign == 0) sign = cross;
+            if ((cross > 0) != (sign > 0)) return false;
+        }
+        return true;
+    };
+    size_t pieces = 0, centres = 0;
+    for (int i = 0; i < 300; ++i) {
+        std::vector<gpu::RasterPiece> out;
+        const double x = at(rng), y = at(rng), l = 400 * len(rng) * len(rng), a = 6.283185307179586 * len(rng);
+        const glm::dvec3 p0 = point(x, y), p1 = point(x + l * std::cos(a), y + l * std::sin(a));
+        const float dilate = i % 3 == 0 ? float(3 * len(rng)) : 0.0f;
+        if (i % 2 == 0) pb.segment(p0, p1, out);
+        else {  // a sliver (width up to 0.3 px) or an ordinary triangle
+            const double w = i % 4 == 1 ? 0.3 * len(rng) : 60 * len(rng), t = len(rng);
+            pb.triangle(p0, p1, point(x + t * l * std::cos(a) - w * std::sin(a), y + t * l * std::sin(a) + w * std::cos(a)),
+                        dilate, 0, out);
+        }
+        pieces += out.size();
+        for (const gpu::RasterPiece& r : out) {
+            const double h = 0.5 + double(r.misc[0]) + double(r.misc[1]);
+            for (int py = int(std::floor(r.box[1] - h - 2)); py <= int(std::ceil(r.box[3] + h + 2)); ++py)
+                for (int px = int(std::floor(r.box[0] - h - 2)); px <= int(std::ceil(r.box[2] + h + 2)); ++px) {
+                    const double cx = px + 0.5, cy = py + 0.5;
+                    // Separating axes: x, y (the box) and the edge normals with their extents.
+                    bool touches = cx + h >= r.box[0] && cx - h <= r.box[2] && cy + h >= r.box[1] && cy - h <= r.box[3];
+                    for (int k = 0; k < 3 && touches; ++k) {
+                        const float* e = r.edge[k];
+                        const double t = double(e[0]) * cx + double(e[1]) * cy, rr = h * (std::abs(e[0]) + std::abs(e[1]));
+                        touches = t + rr >= e[2] && t - rr <= e[3];
+                    }
+                    if (!touches) continue;
+                    ++centres;
+                    EXPECT_TRUE(insideQuad(r.cover, cx, cy))
+                        << "piece " << i << " (kind " << r.misc[2] << "), pixel " << px << "," << py;
+                }
+        }
+    }
+    EXPECT_GT(pieces, 250u);
+    EXPECT_GT(centres, 10000u);
 }
 
 }  // namespace
