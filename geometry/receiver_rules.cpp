@@ -98,11 +98,14 @@ ReceiverRules::~ReceiverRules() {
     }
 }
 
-double ReceiverRules::compute(const Receiver& r, Entry& e) const {
+bool ReceiverRules::facesAway(const Receiver& r) const {
     // Facing: a one-sided receiver the light meets from behind or edge-on gets nothing.
-    if (!r.twoSided && exactFacing(r.tri, r.mirrored, lg_) <= 0) return -1;
+    if (!r.twoSided && exactFacing(r.tri, r.mirrored, lg_) <= 0) return true;
     // Range and cone.
-    if (boxOutOfReach(L_, r.box)) return -1;
+    return boxOutOfReach(L_, r.box);
+}
+
+double ReceiverRules::computeRest(const Receiver& r, Entry& e) const {
     // Terrain (terrain itself exempt): wholly deeper than the tolerance under the
     // lowest ground under its box (cheap), then under the ground triangles over it.
     if (w_.hasTerrain && !r.terrain) {

@@ -53,9 +53,54 @@ public:
     // bound there; check it only when the result is >= 0).
     template <class Make>
     double beta(uint32_t object, uint32_t triangle, const Make& receiver, const std::vector<glm::dvec3>** above = nullptr) const {
-        // Two levels, each made on first touch: a dense mesh's queries touch a few of its
-        // 100k+ triangles, and a table of them all, made and cleared per object, window and
-        // light, would cost more than the queries.
+        Entry& e = entry(object, triangle);
+        double b = e.beta.load(std::memory_order_acquire);  // after the part it publishes
+        if (b == kUnknown || b == kFacesLight) {
+            // Facing, range and cone already passed: the terrain rule and the bias only.
+            b = b == kFacesLight ? computeRest(receiver(), e) : compute(receiver(), e);
+            e.beta.store(b, std::memory_order_release);
+        }
+        if (above) *above = e.part.load(std::memory_order_acquire);
+        return b;
+    }
+
+    // True when the cheap rules exclude the receiver: facing, range and cone (no terrain,
+    // no clipping). Evaluated once per receiver and kept, as beta is (which then evaluates
+    // only the rest): a rock's back faces, met by the columns of its own front faces, are
+    // dismissed before any filter is placed against them. `receiver()` as for beta.
+    template <class Make>
+    bool excludedByFacing(uint32_t object, uint32_t triangle, const Make& receiver) const {
+        Entry& e = entry(object, triangle);
+        double b = e.beta.load(std::memory_order_acquire);
+        if (b == kUnknown) {
+            const double first = facesAway(receiver()) ? kExcluded : kFacesLight;
+            // Unless another thread stored a value meanwhile (the same answer, or a whole one).
+            if (e.beta.compare_exchange_strong(b, first, std::memory_order_acq_rel)) b = first;
+        }
+        return b == kExcluded;
+    }
+
+private:
+    static constexpr double kUnknown = -2.0;  // every computed value is -1 or >= 0
+    static constexpr double kExcluded = -1.0;
+    static constexpr double kFacesLight = -3.0;  // facing, range and cone passed; the rest not evaluated
+    static constexpr size_t kBlock = 64;      // triangles per block of the table
+    struct Entry {
+        std::atomic<double> beta{kUnknown};
+        std::atomic<const std::vector<glm::dvec3>*> part{nullptr};  // owned; set before beta
+    };
+    struct Block {
+        Entry entries[kBlock];
+        ~Block() {
+            for (Entry& e : entries) delete e.part.load(std::memory_order_relaxed);
+        }
+    };
+    size_t blockCount(size_t object) const { return (w_.objects[object].mesh->triangles.size() + kBlock - 1) / kBlock; }
+
+    // The receiver's entry. Two levels, each made on first touch: a dense mesh's queries
+    // touch a few of its 100k+ triangles, and a table of them all, made and cleared per
+    // object, window and light, would cost more than the queries.
+    Entry& entry(uint32_t object, uint32_t triangle) const {
         std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
         if (!table) {
             const size_t n = blockCount(object);
@@ -71,45 +116,15 @@ public:
             if (slot.compare_exchange_strong(block, fresh, std::memory_order_acq_rel)) block = fresh;
             else delete fresh;
         }
-        Entry& e = block->entries[triangle % kBlock];
-        double b = e.beta.load(std::memory_order_acquire);  // after the part it publishes
-        if (b == kUnknown) {
-            b = compute(receiver(), e);
-            e.beta.store(b, std::memory_order_release);
-        }
-        if (above) *above = e.part.load(std::memory_order_acquire);
-        return b;
+        return block->entries[triangle % kBlock];
     }
-
-    // True when the rules were already evaluated for the receiver and exclude it: a lookup
-    // that computes nothing, for callers that would otherwise place and filter it first (a
-    // rock's back faces and buried half, met again by every caster triangle's column).
-    bool knownExcluded(uint32_t object, uint32_t triangle) const {
-        const std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
-        if (!table) return false;
-        const Block* block = table[triangle / kBlock].load(std::memory_order_acquire);
-        if (!block) return false;
-        const double b = block->entries[triangle % kBlock].beta.load(std::memory_order_acquire);
-        return b != kUnknown && b < 0;
-    }
-
-private:
-    static constexpr double kUnknown = -2.0;  // every computed value is -1 or >= 0
-    static constexpr size_t kBlock = 64;      // triangles per block of the table
-    struct Entry {
-        std::atomic<double> beta{kUnknown};
-        std::atomic<const std::vector<glm::dvec3>*> part{nullptr};  // owned; set before beta
-    };
-    struct Block {
-        Entry entries[kBlock];
-        ~Block() {
-            for (Entry& e : entries) delete e.part.load(std::memory_order_relaxed);
-        }
-    };
-    size_t blockCount(size_t object) const { return (w_.objects[object].mesh->triangles.size() + kBlock - 1) / kBlock; }
     // -1 when the rules exclude the receiver, else its bias; publishes the part above the
     // ground in `e` (before the caller publishes the value).
-    double compute(const Receiver& r, Entry& e) const;
+    double compute(const Receiver& r, Entry& e) const { return facesAway(r) ? kExcluded : computeRest(r, e); }
+    // The facing, range and cone rules: true when they exclude the receiver.
+    bool facesAway(const Receiver& r) const;
+    // compute for a receiver the facing, range and cone rules let through: the terrain rule and the bias.
+    double computeRest(const Receiver& r, Entry& e) const;
     // The bias, and for directional lights the slope term (constant over a triangle).
     double bias(const Receiver& r) const;
 
