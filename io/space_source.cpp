@@ -562,6 +562,10 @@ Status SpaceSource::load(const std::vector<ChunkCoord>& cs, Space& space, std::v
     });
     for (size_t k = 0; k < cs.size(); ++k) {
         if (Status s = stopStatus(); !s) return s;
+        if (!read[k]) {  // left unread by a stop request withdrawn since: read it now
+            std::vector<Diagnostic> ignored;
+            read[k].emplace(readChunkFile(chunks_.at(cs[k]).path, cs[k], ignored));
+        }
         if (Status s = adopt(cs[k], std::move(*read[k]), space, lateDiagnostics); !s) return s;
     }
     return Status::ok();
