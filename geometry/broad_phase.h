@@ -79,6 +79,19 @@ public:
                            });
     }
 
+    // visit, with `known(t)` asked of a triangle before its box: true only where leaf(t)
+    // would return false (a receiver the rules excluded already), so the same answers
+    // without the box test.
+    template <class Pred, class Known, class Leaf>
+    bool visit(const Pred& mayHold, const Known& known, const Leaf& leaf) const {
+        return tree_.visit([&](const glm::dvec3& lo, const glm::dvec3& hi) { return mayHold(Aabb{lo, hi}); },
+                           [&](uint32_t t) {
+                               if (known(t)) return false;
+                               Aabb box;
+                               return itemBox(t, box) && mayHold(box) && leaf(t);
+                           });
+    }
+
     static constexpr uint32_t kNone = 0xffffffffu;
     // For a search that wants the first triangle in depth-first order (visit's order) that
     // passes: mayHold(box, items) is asked about nodes only, with the number of triangles

@@ -316,12 +316,15 @@ private:
         // (GeometryOptions::nodeTerrainRuleFrom).
         const bool buriable = window_.hasTerrain && o.kind != ChunkObject::Kind::Terrain &&
                               o.mesh->triangles.size() >= scene_.options.nodeTerrainRuleFrom;
+        // A triangle the receiver rules excluded already (evaluated once per window and
+        // light: a rock's back faces and buried half, met again by every caster triangle's
+        // column) fails every test here: its box is not tested either.
         return TriangleTree(*o.mesh).visit(
             [&](const Aabb& b) {
                 if (!mq.mayHold(b)) return false;
                 return !buriable || nodeMayReceive(o, b, boxMay);
             },
-            [&](uint32_t tri) { return test(k, tri); });
+            [&](uint32_t tri) { return rules_.knownExcluded(k, tri); }, [&](uint32_t tri) { return test(k, tri); });
     }
 
     // The terrain rule on mesh-tree node `msBox` of object `o`: false when its box lies

@@ -80,6 +80,16 @@ public:
         return b == kExcluded;
     }
 
+    // True when an earlier question settled that the rules exclude the receiver (beta -1,
+    // or excludedByFacing true); false when they let it through or nothing was asked yet.
+    // Reads only: the broad phase asks it of every leaf triangle before its box test.
+    bool knownExcluded(uint32_t object, uint32_t triangle) const {
+        const std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
+        if (!table) return false;
+        const Block* block = table[triangle / kBlock].load(std::memory_order_acquire);
+        return block && block->entries[triangle % kBlock].beta.load(std::memory_order_acquire) == kExcluded;
+    }
+
 private:
     static constexpr double kUnknown = -2.0;  // every computed value is -1 or >= 0
     static constexpr double kExcluded = -1.0;
