@@ -544,11 +544,15 @@ std::vector<std::string> SpaceSource::inputFiles() const {
     return {files.begin(), files.end()};
 }
 
+Expected<ChunkFile> SpaceSource::reread(ChunkCoord c) const {
+    std::vector<Diagnostic> ignored;  // the scan (or the plan) gave these
+    return readChunkFile(chunks_.at(c).path, c, ignored);
+}
+
 Status SpaceSource::load(ChunkCoord c, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
     // A window of large chunks takes seconds to load: a signal stops it between them.
     if (Status s = stopStatus(); !s) return s;
-    std::vector<Diagnostic> ignored;  // the scan (or the plan) gave these
-    return adopt(c, readChunkFile(chunks_.at(c).path, c, ignored), space, lateDiagnostics);
+    return adopt(c, reread(c), space, lateDiagnostics);
 }
 
 Status SpaceSource::load(const std::vector<ChunkCoord>& cs, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
@@ -556,16 +560,11 @@ Status SpaceSource::load(const std::vector<ChunkCoord>& cs, Space& space, std::v
     if (Status s = stopStatus(); !s) return s;
     std::vector<std::optional<Expected<ChunkFile>>> read(cs.size());
     tbb::parallel_for(size_t(0), cs.size(), [&](size_t k) {
-        if (stopRequested()) return;  // left unread: stopStatus below
-        std::vector<Diagnostic> ignored;  // the scan (or the plan) gave these
-        read[k].emplace(readChunkFile(chunks_.at(cs[k]).path, cs[k], ignored));
+        if (!stopRequested()) read[k].emplace(reread(cs[k]));  // else left unread: stopStatus below
     });
     for (size_t k = 0; k < cs.size(); ++k) {
         if (Status s = stopStatus(); !s) return s;
-        if (!read[k]) {  // left unread by a stop request withdrawn since: read it now
-            std::vector<Diagnostic> ignored;
-            read[k].emplace(readChunkFile(chunks_.at(cs[k]).path, cs[k], ignored));
-        }
+        if (!read[k]) read[k].emplace(reread(cs[k]));  // left unread by a stop request withdrawn since
         if (Status s = adopt(cs[k], std::move(*read[k]), space, lateDiagnostics); !s) return s;
     }
     return Status::ok();

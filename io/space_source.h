@@ -152,6 +152,8 @@ private:
     ChunkEntry entryOf(const ChunkFile& cf, ChunkCoord coord) const;
     // A planned source's check of a chunk it loads against the plan's summary.
     Status checkAgainstPlan(ChunkCoord c, const ChunkFile& cf);
+    // Chunk `c`'s file read again (its warnings dropped: the scan or the plan gave them).
+    Expected<ChunkFile> reread(ChunkCoord c) const;
     // load() once the file is read: resolved, checked, put into the space.
     Status adopt(ChunkCoord c, Expected<ChunkFile> cf, Space& space, std::vector<Diagnostic>& lateDiagnostics);
     const std::string& fullPath(const std::string& resource) const;  // resource root / resource, normalised
