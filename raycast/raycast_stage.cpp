@@ -516,11 +516,33 @@ struct SearchPass {
     // True when a ray through one of `points` is a witness (the bit is then decided); `lit`
     // counts those with a clear segment. Targets in packets of 16: an occlusion packet drops
     // those whose line is blocked before the group (most of them where a bit ends
-    // undecided), then closest hits examine the rest in order until one is a witness.
+    // undecided), then closest hits examine the rest in order until one is a witness. A
+    // long list (a receiver-side search: thousands of targets, most often all of them
+    // traced for nothing) in blocks on every thread, the witness of the first target in
+    // order kept: the same witness as one thread going through them in order.
     bool searchThrough(const WitnessSearch& task, uint32_t object, const Light& L, const std::vector<glm::dvec3>& points,
                        Decision& d, const char* why, size_t& lit, uint64_t& localRays) const {
-        for (size_t b = 0; b < points.size(); b += 16) {
-            const int count = int(std::min<size_t>(16, points.size() - b));
+        std::optional<Witness> wit = points.size() >= 2 * kTargetBlock
+                                         ? firstWitnessInBlocks(task, object, L, points, lit, localRays)
+                                         : firstWitness(task, object, L, points, 0, points.size(), nullptr, lit, localRays);
+        if (!wit) return false;
+        decide(d, Verdict::Kept, "raycast", why, std::move(*wit));
+        ++kept;
+        return true;
+    }
+
+    // Targets per block of a long list: 16 packets.
+    static constexpr size_t kTargetBlock = 256;
+
+    // The witness of the first of points [begin, end) in order that has one. With `found`
+    // (blocks in parallel): the index of the first target known to have one; the block stops
+    // at a packet past it (that packet's witness could not be the first).
+    std::optional<Witness> firstWitness(const WitnessSearch& task, uint32_t object, const Light& L,
+                                        const std::vector<glm::dvec3>& points, size_t begin, size_t end,
+                                        std::atomic<size_t>* found, size_t& lit, uint64_t& localRays) const {
+        for (size_t b = begin; b < end; b += 16) {
+            if (found && found->load(std::memory_order_relaxed) < b) return std::nullopt;
+            const int count = int(std::min<size_t>(16, end - b));
             bool clear[16];
             tracer.clearSegments(L, object, &points[b], count, clear, &localRays);
             for (int k = 0; k < count; ++k) {
@@ -528,13 +550,47 @@ struct SearchPass {
                 ++lit;
                 if (std::optional<Witness> wit =
                         tracer.tryRay(L, object, uint32_t(task.group), points[b + size_t(k)], task.receiver, &localRays)) {
-                    decide(d, Verdict::Kept, "raycast", why, std::move(wit));
-                    ++kept;
-                    return true;
+                    if (found) {
+                        size_t first = found->load();
+                        while (b + size_t(k) < first && !found->compare_exchange_weak(first, b + size_t(k))) {
+                        }
+                    }
+                    return wit;
                 }
             }
         }
-        return false;
+        return std::nullopt;
+    }
+
+    // firstWitness over blocks of kTargetBlock points in parallel (in the calling thread's
+    // floating-point mode), joined in order: the first block's witness that has one. `lit`
+    // and the rays are those of the blocks up to it, as in order (every block before it was
+    // gone through to its end; the block itself stopped at its witness): the same counts on
+    // any number of threads, the rays of later blocks not counted.
+    std::optional<Witness> firstWitnessInBlocks(const WitnessSearch& task, uint32_t object, const Light& L,
+                                                const std::vector<glm::dvec3>& points, size_t& lit,
+                                                uint64_t& localRays) const {
+        const size_t blocks = (points.size() + kTargetBlock - 1) / kTargetBlock;
+        struct Block {
+            std::optional<Witness> witness;
+            size_t lit = 0;
+            uint64_t rays = 0;
+        };
+        std::vector<Block> parts(blocks);
+        std::atomic<size_t> found{std::numeric_limits<size_t>::max()};
+        const bool ftz = (_mm_getcsr() & FloatModeScope::kFtzDaz) == FloatModeScope::kFtzDaz;
+        tbb::parallel_for(size_t(0), blocks, [&](size_t i) {
+            const FloatModeScope mode(ftz ? FloatModeScope::Underflow::FlushToZero : FloatModeScope::Underflow::Gradual);
+            Block& part = parts[i];
+            const size_t begin = i * kTargetBlock, end = std::min(points.size(), begin + kTargetBlock);
+            part.witness = firstWitness(task, object, L, points, begin, end, &found, part.lit, part.rays);
+        });
+        for (Block& part : parts) {
+            lit += part.lit;
+            localRays += part.rays;
+            if (part.witness) return std::move(part.witness);
+        }
+        return std::nullopt;
     }
 
     // One bit: the task's targets, then, for a point or spot light whose reach cuts the

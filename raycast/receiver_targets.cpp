@@ -277,11 +277,14 @@ bool grazesGround(const Aim& aim, const std::vector<std::array<glm::dvec3, 3>>& 
 }
 
 // The model's triangles whose placed heights can meet [bottom, highest] (conservative node
-// bounds, core/mesh_index.h), sorted: a triangle with every vertex above the highest ground,
+// bounds, core/mesh_index.h), in triangle order: a triangle with every vertex above the highest ground,
 // or every vertex under the lowest ground less the level, holds no band.
 void crossingTriangles(const Aim& aim, const WindowObject& o, double bottom, double highest, double level,
                        std::vector<uint32_t>& crossing) {
     crossing.clear();
+    thread_local std::vector<uint64_t> marked;  // bit t: triangle t may cross
+    const size_t words = (o.mesh->triangles.size() + 63) / 64;
+    marked.assign(words, 0);
     vertexIndex(*o.mesh).triangles.visit(
         [&](const glm::dvec3& lo, const glm::dvec3& hi) {
             // The node's placed box (conservative: core/mesh_index.h).
@@ -307,8 +310,12 @@ void crossingTriangles(const Aim& aim, const WindowObject& o, double bottom, dou
             const std::optional<double> over = aim.w.lsTerrainMaxOver(pLo.x, pLo.z, pHi.x, pHi.z);
             return !(over && pLo.y > *over + margin);
         },
-        [&](uint32_t t) { crossing.push_back(t); });
-    std::sort(crossing.begin(), crossing.end());
+        [&](uint32_t t) { marked[t >> 6] |= uint64_t(1) << (t & 63); });
+    // In triangle order: the marks word by word (a sort of the leaves' triangles was a
+    // quarter of the band's time).
+    for (size_t word = 0; word < words; ++word)
+        for (uint64_t bits = marked[word]; bits; bits &= bits - 1)
+            crossing.push_back(uint32_t(64 * word + size_t(__builtin_ctzll(bits))));
 }
 
 // The band's segments on model `o`, where its triangles cross the level 3/4 of the

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <random>
 
+#include <tbb/global_control.h>
+
 #include <gtest/gtest.h>
 
 #include <glm/geometric.hpp>
@@ -13,6 +15,7 @@
 #include "cli/pipeline.h"
 #include "core/window.h"
 #include "io/scene_reader.h"
+#include "raycast/raycast_stage.h"
 #include "raycast/receiver_targets.h"
 #include "tests/support/bake_lookup.h"
 #include "tests/support/space_builder.h"
@@ -307,4 +310,54 @@ TEST(ReceiverSide, APointLightsTargetsLieWithinItsReach) {
         onNearCubes += p.y > 0.01;
     }
     EXPECT_GT(onNearCubes, 0u);
+}
+
+// A long target list (a receiver-side search's thousands) is searched in blocks on every
+// thread: the witness kept is still the first target's in order that has one, and the
+// rays counted those of the search in order. The ridge's terrain, aimed at through 767
+// points on its flat part (the line meets the ground there, and nothing behind it), then
+// the stone: its first witness target ends the third block of 256, the ones after it
+// start the fourth, then more of the flat part to 2,048 targets. On one thread and on
+// every thread: the same witness, on the first stone target, and the same rays.
+TEST(ReceiverSide, ALongTargetListKeepsTheFirstWitnessInOrder) {
+    const fs::path dir = freshTestDir() / "space";
+    ridgeWithStoneBeyond().write(dir.string());
+    Loaded l(dir);
+    ASSERT_TRUE(l.space);
+    const BakeWindow& w = l.window;
+    const glm::dvec3 first{109.85, -1.69 + 0.1, 36.1 + 0.05};  // on the stone's face to the light
+    std::vector<glm::dvec3> targets;
+    for (int k = 0; k < 767; ++k) targets.push_back(glm::dvec3(5.0 + 0.05 * k, 0.0, 5.0 + 0.1 * k) - w.wsOrigin);
+    targets.push_back(first - w.wsOrigin);
+    for (int k = 0; k < 300; ++k)
+        targets.push_back(glm::dvec3(109.85, -1.69 - 0.1 + 0.0005 * k, 36.1 - 0.1 + 0.0006 * k) - w.wsOrigin);
+    // More of the flat part: blocks that another thread may go through before the witness
+    // is known; their rays are not the search's in order.
+    for (int k = 0; k < 981; ++k) targets.push_back(glm::dvec3(40.0 - 0.03 * k, 0.0, 90.0 - 0.08 * k) - w.wsOrigin);
+    struct Searched {
+        Decision decision;
+        uint64_t rays = 0;
+    };
+    auto search = [&](int threads) {
+        std::unique_ptr<tbb::global_control> limit;
+        if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
+        ChunkVerdicts cv = makeChunkVerdicts(*l.space, w);
+        size_t terrain = cv.objects.size();
+        for (size_t oi = 0; oi < cv.objects.size(); ++oi)
+            if (cv.objects[oi].terrain) terrain = oi;
+        EXPECT_LT(terrain, cv.objects.size());
+        raycast::RaycastStage stage;
+        StageStats stats;
+        raycast::WitnessSearch s{terrain, 0, 0, targets};
+        EXPECT_TRUE(stage.searchAt(w, cv, {s}, stats, "test"));
+        return Searched{cv.at(terrain, 0, 0), stats.raysCast};
+    };
+    const Searched one = search(1), every = search(0);
+    for (const Searched* r : {&one, &every}) {
+        ASSERT_EQ(r->decision.verdict, Verdict::Kept);
+        ASSERT_NE(r->decision.witness(), nullptr);
+        EXPECT_LT(glm::length(r->decision.witness()->wsQ - first), 1e-6) << r->decision.witness()->wsQ.z;
+    }
+    EXPECT_EQ(one.rays, every.rays);
+    EXPECT_GT(one.rays, 767u);  // the flat part's targets were traced
 }
