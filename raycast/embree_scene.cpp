@@ -2,6 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
+#include <vector>
+
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 
 namespace shadowcull::raycast {
@@ -55,9 +60,7 @@ void EmbreeScenes::forget(const std::unordered_set<const Mesh*>& meshes) {
     }
 }
 
-const EmbreeScenes::Prototype& EmbreeScenes::prototype(const Mesh* mesh, bool terrain) {
-    auto it = prototypes_.find(mesh);
-    if (it != prototypes_.end()) return it->second;
+EmbreeScenes::Prototype EmbreeScenes::buildPrototype(const Mesh* mesh, bool terrain) const {
     Prototype proto;
     if (terrain && !mesh->positions.empty()) {
         // Whole metres: exact in the instance's float translation, and the same floats
@@ -91,16 +94,30 @@ const EmbreeScenes::Prototype& EmbreeScenes::prototype(const Mesh* mesh, bool te
         proto.opaque = proto.all;
     else if (!opaque.empty())
         proto.opaque = makeScene(opaque);
-    return prototypes_.emplace(mesh, proto).first->second;
+    return proto;
 }
 
-RTCScene EmbreeScenes::placeAll(const BakeWindow& w, bool opaque) {
+void EmbreeScenes::buildPrototypes(const BakeWindow& w) {
+    // The meshes without one, once each, in window order; built in parallel (a window that
+    // slid brings a row of terrains, each a small build that Embree runs on one thread).
+    std::vector<std::pair<const Mesh*, bool>> missing;
+    std::unordered_set<const Mesh*> seen;
+    for (const WindowObject& o : w.objects)
+        if (!prototypes_.count(o.mesh) && seen.insert(o.mesh).second)
+            missing.emplace_back(o.mesh, o.kind == ChunkObject::Kind::Terrain);
+    std::vector<Prototype> built(missing.size());
+    tbb::parallel_for(size_t(0), missing.size(),
+                      [&](size_t k) { built[k] = buildPrototype(missing[k].first, missing[k].second); });
+    for (size_t k = 0; k < missing.size(); ++k) prototypes_.emplace(missing[k].first, built[k]);
+}
+
+RTCScene EmbreeScenes::placeAll(const BakeWindow& w, bool opaque) const {
     RTCScene scene = rtcNewScene(device_);
     rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
     for (size_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
         if (opaque && !o.castsShadow) continue;  // not in the shadow map: light passes it
-        const Prototype& proto = prototype(o.mesh, o.kind == ChunkObject::Kind::Terrain);
+        const Prototype& proto = prototypes_.at(o.mesh);  // buildPrototypes made it
         RTCScene placed = opaque ? proto.opaque : proto.all;
         if (!placed) continue;  // nothing opaque in it
         RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
@@ -135,8 +152,13 @@ WindowScene EmbreeScenes::buildWindow(const BakeWindow& w) {
             ++it;
         }
     }
-    RTCScene all = placeAll(w, false);
-    WindowScene scene(all, needsTransparencyFilter(w) ? placeAll(w, true) : all);
+    buildPrototypes(w);
+    // The two top-level trees side by side (each a few milliseconds that Embree's own
+    // threads barely share).
+    const bool split = needsTransparencyFilter(w);
+    RTCScene all = nullptr, opaque = nullptr;
+    tbb::parallel_invoke([&] { all = placeAll(w, false); }, [&] { opaque = split ? placeAll(w, true) : nullptr; });
+    WindowScene scene(all, split ? opaque : all);
     // The window slid: the prototypes of meshes it no longer holds (the terrains of the
     // chunks left behind) are released, so that memory follows the window, not the world.
     const std::unordered_set<const Mesh*> loaded = w.meshes();

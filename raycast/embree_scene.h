@@ -59,8 +59,9 @@ public:
     EmbreeScenes(const EmbreeScenes&) = delete;
     EmbreeScenes& operator=(const EmbreeScenes&) = delete;
 
-    // The committed scenes of the window. Prototypes of meshes the window does not hold
-    // are released (those of the previous window that it left behind).
+    // The committed scenes of the window: its missing prototypes built in parallel, then
+    // its two top-level trees side by side. Prototypes of meshes the window does not hold
+    // are released (those of the previous window that it left behind). Not reentrant.
     WindowScene buildWindow(const BakeWindow& window);
     size_t prototypeCount() const { return prototypes_.size(); }
     // Rays traced in the scenes since the last call (the raycast stage, after each search):
@@ -97,9 +98,11 @@ private:
         bool compact = false;
         uint64_t raysAtBuild = 0;  // rays_ when it was built
     };
-    const Prototype& prototype(const Mesh* mesh, bool terrain);
+    Prototype buildPrototype(const Mesh* mesh, bool terrain) const;
+    // A prototype for every mesh of the window that has none.
+    void buildPrototypes(const BakeWindow& w);
     void release(Prototype& proto);
-    RTCScene placeAll(const BakeWindow& w, bool opaque);
+    RTCScene placeAll(const BakeWindow& w, bool opaque) const;
     RTCDevice device_;
     std::unordered_map<const Mesh*, Prototype> prototypes_;
     uint64_t rays_ = 0;                     // noteRays, summed
