@@ -56,6 +56,8 @@ public:
 
     // False only when no point of the window-local box lies in the frustum.
     bool mayHold(const Aabb& lsBox) const;
+    // The same, one half-space at a time (the reference mayHold's two-at-a-time must equal).
+    bool mayHoldByLoop(const Aabb& lsBox) const;
     // Clusters (ofCluster) only: true only when no caster point of the cluster has a
     // receiver point of `r` behind it by more than `beta` (metres, >= 0) on its ray: `r`
     // misses the column (misses()), or lies wholly nearer the light than the cluster's
@@ -78,17 +80,22 @@ public:
     public:
         // False only when no point of the mesh box, mapped to the window, lies in the frustum.
         bool mayHold(const Aabb& msBox) const;
+        // The same, one plane at a time (the reference mayHold's two-at-a-time must equal).
+        bool mayHoldByLoop(const Aabb& msBox) const;
 
     private:
         friend class ShadowQuery;
-        struct Plane {
-            glm::dvec3 n{0.0};  // mesh coordinates
-            double c = 0;       // value = n . y + c
-            glm::dvec3 yWeight{0.0};  // bound on |error| per unit of |y_i|
-            double err = 0;           // bound on |error| independent of y
+        // The planes by component (two at a time in mayHold), the ones past count_ planes
+        // every box passes (all zero). Plane i: value = n . y + c in mesh coordinates
+        // (n = (nx, ny, nz)), within err + yWeight . |y| (yWeight = (wx, wy, wz)) of the
+        // window's.
+        struct Planes {
+            alignas(16) std::array<double, 16> nx{}, ny{}, nz{}, c{}, wx{}, wy{}, wz{}, err{};
         };
-        std::array<Plane, 16> planes_;
+        Planes planes_;
         int count_ = 0;
+        // Point lights: the window-local box of the mapped mesh box, grown by its rounding.
+        Aabb lsBoxOf(const Aabb& msBox) const;
         // Point lights: the window-local box of the mapped mesh box (centre M c + r3, half
         // extents |M| h), whose farthest point from the light must not be nearer than `near`.
         const ShadowQuery* query_ = nullptr;
@@ -110,7 +117,14 @@ private:
     // Directional lights: the two half-spaces of the slab normal to d x axis holding the caster.
     void addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm::dvec3& axis) const;
     bool tooNear(const Aabb& lsBox) const;
+    // hs_ by component for mayHold (two at a time), the ones past count_ half-spaces every
+    // box passes (all zero); made by pack() once hs_ is complete.
+    struct Packed {
+        alignas(16) std::array<double, 16> nx{}, ny{}, nz{}, ox{}, oy{}, oz{}, k{}, rel{}, abs{};
+    };
+    void pack();
     std::array<HalfSpace, 16> hs_;  // frustum_ then the world axes' slabs
+    Packed packed_;
     int frustumCount_ = 0, count_ = 0;
     // Directional lights: the caster and light, for the slabs of an instance's axes.
     bool directional_ = false;

@@ -291,3 +291,52 @@ TEST(ShadowQuery, NeverSkipsWhatTheExactTestReaches) {
     std::printf("%zu pairs, %zu reached, %zu receivers skipped by a triangle's query, %zu by a cluster's\n", pairs, reached,
                 skippedInMesh, skippedCluster);
 }
+
+// mayHold tests two half-spaces (or mesh planes) at a time: every answer is the one-at-a-time
+// loop's (mayHoldByLoop), for triangles' and clusters' queries, directional and point lights,
+// an odd and an even number of half-spaces, boxes near and 100 km from the origin, boxes
+// that are points, and boxes with a coordinate of zero.
+TEST(ShadowQuery, TwoAtATimeIsOneAtATime) {
+    std::mt19937_64 rng(31);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    size_t held = 0, skipped = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+        LightGeometry light;
+        light.directional = trial % 3 != 0;
+        light.direction = trial % 7 == 0 ? glm::dvec3(0, -1, 0) : glm::normalize(glm::dvec3(u(rng) * 0.8, -1.0, u(rng) * 0.8));
+        const double dilation = trial % 5 == 0 ? 0.01 : 0.0;
+        const double reach = trial % 4 == 0 ? 1e5 : trial % 2 == 0 ? 1.0 : 150.0;
+        const double margin = 1e-9 * (reach + 11.0) + 1e-9;
+        const RowTransform casterPlace = randomPlacement(rng, reach), receiverPlace = randomPlacement(rng, reach);
+        const glm::dvec3 c(u(rng), u(rng), u(rng));
+        const glm::dvec3 h = glm::dvec3(0.05) + 0.3 * glm::abs(glm::dvec3(u(rng), u(rng), u(rng)));
+        const Triangle t = {casterPlace.apply(c + h * glm::dvec3(u(rng), u(rng), u(rng))),
+                            casterPlace.apply(c + h * glm::dvec3(u(rng), u(rng), u(rng))),
+                            casterPlace.apply(c + h * glm::dvec3(u(rng), u(rng), u(rng)))};
+        light.position = casterPlace.apply(c) + glm::dvec3(u(rng), 1.5 + std::abs(u(rng)), u(rng));
+        const ShadowQuery q(t, light, dilation, margin);
+        const ShadowQuery cq = ShadowQuery::ofCluster(Aabb{c - h, c + h}, casterPlace, light, dilation, margin);
+        const ShadowQuery::InMesh qMesh = q.inMesh(receiverPlace), cqMesh = cq.inMesh(receiverPlace);
+        const glm::dvec3 along = light.directional ? light.direction : glm::normalize(t[0] - light.position);
+        for (int k = 0; k < 60; ++k) {
+            const glm::dvec3 p = t[size_t(k % 3)] + along * (2.0 * u(rng)) + glm::dvec3(u(rng), u(rng), u(rng)) * 0.6;
+            glm::dvec3 e = glm::abs(glm::dvec3(u(rng), u(rng), u(rng))) * (k % 6 == 0 ? 0.0 : k % 2 ? 0.05 : 1.5);
+            Aabb ls{p - e, p + e};
+            if (k % 9 == 0) ls.min.x = 0.0, ls.max.x = std::max(0.0, ls.max.x);  // a coordinate of zero
+            const Aabb ms{toMesh(receiverPlace, p) - e, toMesh(receiverPlace, p) + e};
+            for (const ShadowQuery* query : {&q, &cq}) {
+                const bool answer = query->mayHold(ls);
+                ASSERT_EQ(answer, query->mayHoldByLoop(ls)) << "trial " << trial << " box " << k;
+                (answer ? held : skipped) += 1;
+            }
+            for (const ShadowQuery::InMesh* query : {&qMesh, &cqMesh}) {
+                const bool answer = query->mayHold(ms);
+                ASSERT_EQ(answer, query->mayHoldByLoop(ms)) << "trial " << trial << " mesh box " << k;
+                (answer ? held : skipped) += 1;
+            }
+        }
+    }
+    // Meaningful only if both answers are common.
+    EXPECT_GT(held, 10000u);
+    EXPECT_GT(skipped, 10000u);
+}
