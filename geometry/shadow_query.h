@@ -38,6 +38,16 @@ namespace shadowcull::geometry {
 // and, for point and spot lights, within range; grown by `margin` and the filter radius.
 Aabb shadowBox(const glm::dvec3* pts, int count, const Light& L, const Aabb& limits, double margin);
 
+// ShadowQuery's half-spaces (value n . (x - o) + k, allowed down to -(rel |x - o|_1 + abs +
+// rounding)) and InMesh's planes (value n . y + c, within err + w . |y|) by component, for
+// box tests several at a time: entries past the count are zero (hold every box).
+struct PackedHalfSpaces {
+    alignas(32) std::array<double, 16> nx{}, ny{}, nz{}, ox{}, oy{}, oz{}, k{}, rel{}, abs{};
+};
+struct PackedPlanes {
+    alignas(32) std::array<double, 16> nx{}, ny{}, nz{}, c{}, wx{}, wy{}, wz{}, err{};
+};
+
 class ShadowQuery {
 public:
     // `margin`: metres of slack for the rounding of window-local coordinates (the stage's
@@ -56,8 +66,12 @@ public:
 
     // False only when no point of the window-local box lies in the frustum.
     bool mayHold(const Aabb& lsBox) const;
-    // The same, one half-space at a time (the reference mayHold's two-at-a-time must equal).
+    // The same, one half-space at a time (the reference: mayHold takes several at a time).
     bool mayHoldByLoop(const Aabb& lsBox) const;
+    // Tests: whether mayHold and InMesh::mayHold take four at a time with AVX (where the
+    // processor has it: the default) or two with SSE2; returns the previous choice. Not
+    // while another thread tests boxes.
+    static bool useAvx(bool on);
     // Clusters (ofCluster) only: true only when no caster point of the cluster has a
     // receiver point of `r` behind it by more than `beta` (metres, >= 0) on its ray: `r`
     // misses the column (misses()), or lies wholly nearer the light than the cluster's
@@ -80,19 +94,13 @@ public:
     public:
         // False only when no point of the mesh box, mapped to the window, lies in the frustum.
         bool mayHold(const Aabb& msBox) const;
-        // The same, one plane at a time (the reference mayHold's two-at-a-time must equal).
+        // The same, one plane at a time (the reference: mayHold takes several at a time).
         bool mayHoldByLoop(const Aabb& msBox) const;
 
     private:
         friend class ShadowQuery;
-        // The planes by component (two at a time in mayHold), the ones past count_ planes
-        // every box passes (all zero). Plane i: value = n . y + c in mesh coordinates
-        // (n = (nx, ny, nz)), within err + yWeight . |y| (yWeight = (wx, wy, wz)) of the
-        // window's.
-        struct Planes {
-            alignas(16) std::array<double, 16> nx{}, ny{}, nz{}, c{}, wx{}, wy{}, wz{}, err{};
-        };
-        Planes planes_;
+        // The planes in mesh coordinates, each within err + w . |y| of the window's value.
+        PackedPlanes planes_;
         int count_ = 0;
         // Point lights: the window-local box of the mapped mesh box, grown by its rounding.
         Aabb lsBoxOf(const Aabb& msBox) const;
@@ -117,14 +125,10 @@ private:
     // Directional lights: the two half-spaces of the slab normal to d x axis holding the caster.
     void addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm::dvec3& axis) const;
     bool tooNear(const Aabb& lsBox) const;
-    // hs_ by component for mayHold (two at a time), the ones past count_ half-spaces every
-    // box passes (all zero); made by pack() once hs_ is complete.
-    struct Packed {
-        alignas(16) std::array<double, 16> nx{}, ny{}, nz{}, ox{}, oy{}, oz{}, k{}, rel{}, abs{};
-    };
+    // hs_ by component for mayHold; made by pack() once hs_ is complete.
     void pack();
     std::array<HalfSpace, 16> hs_;  // frustum_ then the world axes' slabs
-    Packed packed_;
+    PackedHalfSpaces packed_;
     int frustumCount_ = 0, count_ = 0;
     // Directional lights: the caster and light, for the slabs of an instance's axes.
     bool directional_ = false;

@@ -292,15 +292,19 @@ TEST(ShadowQuery, NeverSkipsWhatTheExactTestReaches) {
                 skippedInMesh, skippedCluster);
 }
 
-// mayHold tests two half-spaces (or mesh planes) at a time: every answer is the one-at-a-time
-// loop's (mayHoldByLoop), for triangles' and clusters' queries, directional and point lights,
-// an odd and an even number of half-spaces, boxes near and 100 km from the origin, boxes
-// that are points, and boxes with a coordinate of zero.
-TEST(ShadowQuery, TwoAtATimeIsOneAtATime) {
+// mayHold tests four half-spaces (or mesh planes) at a time, with AVX or SSE2: every answer
+// is the one-at-a-time loop's (mayHoldByLoop), on both, for triangles' and clusters'
+// queries, directional and point lights, counts of half-spaces that are and are not a
+// multiple of four, boxes near and 100 km from the origin, boxes that are points, boxes
+// with a coordinate of zero, and boxes a rounding step either side of where the loop's
+// answer turns (where the allowances for rounding decide).
+TEST(ShadowQuery, FourAtATimeIsOneAtATime) {
     std::mt19937_64 rng(31);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    size_t held = 0, skipped = 0;
-    for (int trial = 0; trial < 400; ++trial) {
+    size_t held = 0, skipped = 0, boundaries = 0;
+    const bool avx = ShadowQuery::useAvx(true);  // the default: AVX where the processor has it
+    for (int trial = 0; trial < 800; ++trial) {
+        ShadowQuery::useAvx(trial % 2 == 0);  // every other trial on SSE2
         LightGeometry light;
         light.directional = trial % 3 != 0;
         light.direction = trial % 7 == 0 ? glm::dvec3(0, -1, 0) : glm::normalize(glm::dvec3(u(rng) * 0.8, -1.0, u(rng) * 0.8));
@@ -334,8 +338,46 @@ TEST(ShadowQuery, TwoAtATimeIsOneAtATime) {
                 ASSERT_EQ(answer, query->mayHoldByLoop(ms)) << "trial " << trial << " mesh box " << k;
                 (answer ? held : skipped) += 1;
             }
+            // Where the answer turns: the box moved along v until the loop's answer changes,
+            // then bisected to adjacent positions, where the rounding allowances decide.
+            if (k % 3 != 0) continue;
+            const glm::dvec3 v = glm::normalize(glm::dvec3(u(rng), u(rng), u(rng)));
+            auto boundary = [&](const auto& holds, const Aabb& box) {
+                auto at = [&](double t) { return Aabb{box.min + v * t, box.max + v * t}; };
+                double in = 0.0, out = 1.0;
+                if (!holds(at(in))) return;
+                while (holds(at(out)) && out < 1e7) out *= 2;
+                if (holds(at(out))) return;
+                for (int step = 0; step < 200 && std::nextafter(in, out) != out; ++step) {
+                    const double mid = 0.5 * (in + out);
+                    (holds(at(mid)) ? in : out) = mid;
+                }
+                ++boundaries;
+                for (double t : {in, out, std::nextafter(in, -1e300), std::nextafter(out, 1e300)}) {
+                    const Aabb moved = at(t);
+                    ASSERT_EQ(holds(moved), holds.wide(moved)) << "trial " << trial << " box " << k << " at " << t;
+                }
+            };
+            for (const ShadowQuery* query : {&q, &cq}) {
+                struct {
+                    const ShadowQuery* query;
+                    bool operator()(const Aabb& b) const { return query->mayHoldByLoop(b); }
+                    bool wide(const Aabb& b) const { return query->mayHold(b); }
+                } holds{query};
+                boundary(holds, ls);
+            }
+            for (const ShadowQuery::InMesh* query : {&qMesh, &cqMesh}) {
+                struct {
+                    const ShadowQuery::InMesh* query;
+                    bool operator()(const Aabb& b) const { return query->mayHoldByLoop(b); }
+                    bool wide(const Aabb& b) const { return query->mayHold(b); }
+                } holds{query};
+                boundary(holds, ms);
+            }
         }
     }
+    EXPECT_GT(boundaries, 5000u);
+    ShadowQuery::useAvx(avx);
     // Meaningful only if both answers are common.
     EXPECT_GT(held, 10000u);
     EXPECT_GT(skipped, 10000u);
