@@ -485,6 +485,7 @@ struct ChunkLoop {
         }
         if (Status s = windows.enter(k, space, result.diagnostics); !s) return s;
         result.peakLoadedChunks = windows.peakLoaded();
+        windows.readAhead(k + 1, space);  // the next window's new chunk files, read during this bake
         const ChunkFile& cf = space.chunks.at(targets[k]);
         ChunkVerdicts cv;
         if (Status s = bakeWindow(k, plan, cf, cv); !s) return s;

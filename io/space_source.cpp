@@ -570,6 +570,42 @@ Status SpaceSource::load(const std::vector<ChunkCoord>& cs, Space& space, std::v
     return Status::ok();
 }
 
+Status SpaceSource::load(const std::vector<ChunkCoord>& cs, Space& space, std::vector<Diagnostic>& lateDiagnostics,
+                         ReadAhead ahead) {
+    if (ahead.empty()) return load(cs, space, lateDiagnostics);
+    if (Status s = stopStatus(); !s) return s;
+    std::vector<ChunkCoord> rest;  // not read ahead: read now, in parallel
+    for (ChunkCoord c : cs)
+        if (!ahead.count(c)) rest.push_back(c);
+    std::vector<std::optional<Expected<ChunkFile>>> read(rest.size());
+    tbb::parallel_for(size_t(0), rest.size(), [&](size_t k) {
+        if (!stopRequested()) read[k].emplace(reread(rest[k]));
+    });
+    for (size_t k = 0; k < rest.size(); ++k)
+        if (read[k]) ahead.emplace(rest[k], std::move(*read[k]));
+    for (ChunkCoord c : cs) {
+        if (Status s = stopStatus(); !s) return s;
+        auto it = ahead.find(c);
+        if (it == ahead.end()) it = ahead.emplace(c, reread(c)).first;  // left unread by a stop request withdrawn since
+        if (Status s = adopt(c, std::move(it->second), space, lateDiagnostics); !s) return s;
+    }
+    return Status::ok();
+}
+
+std::function<SpaceSource::ReadAhead()> SpaceSource::readAhead(const std::vector<ChunkCoord>& cs) const {
+    std::vector<std::pair<ChunkCoord, std::string>> files;
+    for (ChunkCoord c : cs) files.emplace_back(c, chunks_.at(c).path);
+    return [files = std::move(files)] {
+        ReadAhead read;
+        for (const auto& [c, path] : files) {
+            if (stopRequested()) break;  // the rest read by load(), or not at all
+            std::vector<Diagnostic> ignored;  // the scan (or the plan) gave these
+            read.emplace(c, readChunkFile(path, c, ignored));
+        }
+        return read;
+    };
+}
+
 // The rest of load() once chunk `c`'s file is read: its resources resolved, checked against
 // the scan (or the plan), put into `space`.
 Status SpaceSource::adopt(ChunkCoord c, Expected<ChunkFile> cf, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
@@ -629,11 +665,32 @@ WindowSequence::WindowSequence(SpaceSource& source, std::vector<ChunkCoord> cent
 
 std::vector<ChunkCoord> WindowSequence::window(size_t k) const { return planner_.plan(centres_[k]).chunks; }
 
-Status WindowSequence::enter(size_t k, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
-    std::vector<ChunkCoord> missing;
+std::vector<ChunkCoord> WindowSequence::missing(size_t k, const Space& space) const {
+    std::vector<ChunkCoord> out;
     for (ChunkCoord c : window(k))
-        if (!space.chunks.count(c)) missing.push_back(c);
-    if (Status s = source_.load(missing, space, lateDiagnostics); !s) return s;
+        if (!space.chunks.count(c)) out.push_back(c);
+    return out;
+}
+
+WindowSequence::~WindowSequence() {
+    if (ahead_.valid()) ahead_.wait();
+}
+
+void WindowSequence::readAhead(size_t k, const Space& space) {
+    if (k >= centres_.size() || ahead_.valid()) return;
+    const std::vector<ChunkCoord> next = missing(k, space);
+    if (next.empty()) return;
+    aheadFor_ = k;
+    ahead_ = std::async(std::launch::async, source_.readAhead(next));
+}
+
+Status WindowSequence::enter(size_t k, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
+    SpaceSource::ReadAhead ahead;
+    if (ahead_.valid()) {
+        ahead = ahead_.get();  // for another window (one skipped: resumed), simply unused
+        if (aheadFor_ != k) ahead.clear();
+    }
+    if (Status s = source_.load(missing(k, space), space, lateDiagnostics, std::move(ahead)); !s) return s;
     peak_ = std::max(peak_, space.chunks.size());
     return Status::ok();
 }

@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <future>
 #include <map>
 #include <memory>
 #include <set>
@@ -127,6 +128,15 @@ public:
     // window that slides brings a few chunks at once); the same chunks, errors (the first
     // in `cs` order) and warnings as one load() after another.
     Status load(const std::vector<ChunkCoord>& cs, Space& space, std::vector<Diagnostic>& lateDiagnostics);
+    // A chunk file read ahead of its load() (readAhead), and its load with them: the files
+    // read ahead are taken as read (an entry left empty, or a chunk not in `ahead`, is read
+    // now), then every chunk adopted in `cs` order, as load(cs) does.
+    using ReadAhead = std::map<ChunkCoord, Expected<ChunkFile>>;
+    Status load(const std::vector<ChunkCoord>& cs, Space& space, std::vector<Diagnostic>& lateDiagnostics, ReadAhead ahead);
+    // Reads and parses the files of `cs` now, for a later load(cs, ..., ahead): thread-safe
+    // against this source's other calls (it reads only the chunks' paths, taken now; the
+    // returned task touches nothing of the source). Warnings are dropped, as reread's.
+    std::function<ReadAhead()> readAhead(const std::vector<ChunkCoord>& cs) const;
     // Drops chunk `c` from `space.chunks`, then the meshes and heightfields no loaded chunk
     // uses any more (with their terrain meshes). Returns the meshes that go: whatever is
     // keyed by their address (the stages' caches) must forget them before the caller lets
@@ -215,13 +225,22 @@ public:
     std::vector<std::shared_ptr<const Mesh>> leave(size_t k, Space& space, TerrainMeshes& terrainMeshes);
     // The most chunks `space` held at once so far.
     size_t peakLoaded() const { return peak_; }
+    // Starts reading, on a thread of its own, the chunk files window k will load that
+    // `space` does not hold (call after entering window k - 1: its bake hides the reads);
+    // enter(k) takes them. Only the files are read there (no resolving, no space change).
+    void readAhead(size_t k, const Space& space);
+    // Waits for a read-ahead in flight (before the source or the space goes).
+    ~WindowSequence();
 
 private:
+    std::vector<ChunkCoord> missing(size_t k, const Space& space) const;
     SpaceSource& source_;
     const WindowPlanner& planner_;
     std::vector<ChunkCoord> centres_;
     std::map<ChunkCoord, size_t> lastUse_;  // the last window holding each chunk
     size_t peak_ = 0;
+    size_t aheadFor_ = 0;  // the window the read-ahead is for
+    std::future<SpaceSource::ReadAhead> ahead_;
 };
 
 }  // namespace shadowcull

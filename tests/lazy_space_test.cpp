@@ -273,6 +273,82 @@ TEST(SpaceSource, TheScansMeshesGoToTheFirstWindowsThatNeedThem) {
         }
 }
 
+// A window's new chunk files read ahead (during the previous window's bake, on a thread of
+// their own) load as read when the window is entered: the same chunks, objects and
+// late warnings as a sequence that reads each at its window, also with a chunk edited
+// since the scan (its warnings come late) and with read-aheads meant for a window that is
+// then not the next one (they are dropped, the chunks read then).
+TEST(SpaceSource, ChunksReadAheadLoadAsReadAtTheirWindow) {
+    const fs::path dir = freshTestDir();
+    const std::string space = writeStripWorld(dir, 8);
+    Expected<SpaceSource> scanned = SpaceSource::scan(space, "");
+    ASSERT_TRUE(scanned);
+    // An edit since the scan: an object's resource now a malformed OBJ.
+    writeText(fs::path(space) / "models" / "bad_new.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n");
+    const ChunkCoord edited{3, 2};
+    const std::string path = scanned->chunks().at(edited).path;
+    const std::string original = readText(path);
+    std::string text = original;
+    const size_t at = text.find("<resource> models/");
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, text.find("</resource>", at) - at, "<resource> models/bad_new.obj ");
+    std::vector<ChunkCoord> centres;
+    for (const auto& [c, e] : scanned->chunks()) centres.push_back(c);
+    const WindowPlanner planner(scanned->settings(), scanned->chunks(), true);
+    struct Run {
+        std::vector<std::string> loaded;  // per window: its chunks, objects and skips
+        std::vector<std::string> late;
+    };
+    auto run = [&](bool ahead) {
+        writeText(path, original);
+        Expected<SpaceSource> source = SpaceSource::scan(space, "");
+        EXPECT_TRUE(source);
+        writeText(path, text);  // edited after the scan
+        Run r;
+        if (!source) return r;
+        Space loaded;
+        TerrainMeshes terrain;
+        std::vector<Diagnostic> late;
+        WindowSequence windows(*source, centres, planner);
+        for (size_t k = 0; k < centres.size(); ++k) {
+            EXPECT_TRUE(windows.enter(k, loaded, late));
+            if (ahead) windows.readAhead(k % 4 == 1 ? k + 2 : k + 1, loaded);
+            std::string w;
+            for (const auto& [c, cf] : loaded.chunks) {
+                w += chunkFileName(c) + " " + std::to_string(cf.contentHash) + ":";
+                for (const ChunkObject& o : cf.objects) w += o.skipped ? " skipped" : o.mesh ? " mesh" : " terrain";
+                w += "\n";
+            }
+            r.loaded.push_back(w);
+            windows.leave(k, loaded, terrain);
+        }
+        for (const Diagnostic& d : late) r.late.push_back(d.what());
+        return r;
+    };
+    const Run once = run(false), ahead = run(true);
+    ASSERT_EQ(once.loaded.size(), ahead.loaded.size());
+    for (size_t k = 0; k < once.loaded.size(); ++k) EXPECT_EQ(once.loaded[k], ahead.loaded[k]) << "window " << k;
+    EXPECT_EQ(once.late, ahead.late);
+    EXPECT_FALSE(once.late.empty()) << "the edited chunk's malformed resource is a late warning";
+
+    // Part of a load read ahead (every other chunk), the rest read by the load itself.
+    writeText(path, original);
+    Expected<SpaceSource> a = SpaceSource::scan(space, ""), b = SpaceSource::scan(space, "");
+    ASSERT_TRUE(a && b);
+    writeText(path, text);
+    std::vector<ChunkCoord> half;
+    for (size_t k = 0; k < centres.size(); k += 2) half.push_back(centres[k]);
+    Space all, some;
+    std::vector<Diagnostic> lateAll, lateSome;
+    ASSERT_TRUE(a->load(centres, all, lateAll));
+    ASSERT_TRUE(b->load(centres, some, lateSome, b->readAhead(half)()));
+    ASSERT_EQ(all.chunks.size(), centres.size());
+    ASSERT_EQ(some.chunks.size(), centres.size());
+    for (ChunkCoord c : centres) EXPECT_EQ(all.chunks.at(c).contentHash, some.chunks.at(c).contentHash);
+    ASSERT_EQ(lateAll.size(), lateSome.size());
+    for (size_t k = 0; k < lateAll.size(); ++k) EXPECT_EQ(lateAll[k].what(), lateSome[k].what());
+}
+
 // A parked mesh is not used once its file was edited after the scan: not when the size
 // changes, nor when only the time does (the same size, other bytes).
 TEST(SpaceSource, AParkedMeshWhoseFileChangedIsReadAgain) {
