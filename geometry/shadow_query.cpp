@@ -167,7 +167,7 @@ void ShadowQuery::pack() {
         const size_t j = size_t(i);
         packed_.nx[j] = h.n.x, packed_.ny[j] = h.n.y, packed_.nz[j] = h.n.z;
         packed_.ox[j] = h.o.x, packed_.oy[j] = h.o.y, packed_.oz[j] = h.o.z;
-        packed_.k[j] = h.k, packed_.rel[j] = h.rel, packed_.abs[j] = h.abs;
+        packed_.k[j] = h.k, packed_.rel[j] = h.rel, packed_.abs[j] = h.abs, packed_.n1[j] = norm1(h.n);
     }
 }
 
@@ -326,29 +326,6 @@ bool ShadowQuery::tooNear(const Aabb& b) const {
     return glm::length(far) * (1 + 1e-9) < near_;
 }
 
-bool ShadowQuery::misses(const Triangle& r) const {
-    for (int i = 0; i < count_; ++i) {
-        const HalfSpace& h = hs_[size_t(i)];
-        bool out = true;
-        for (const glm::dvec3& x : r) {
-            const glm::dvec3 d = x - h.o;
-            const double v = glm::dot(h.n, d) + h.k;
-            const double bound = h.rel * norm1(d) + h.abs + kRound * (norm1(h.n) * norm1(d) + std::abs(h.k)) + 1e-300;
-            if (!(v < -bound)) {
-                out = false;
-                break;
-            }
-        }
-        if (out) return true;
-    }
-    if (pointLight_) {
-        Aabb b;
-        for (const glm::dvec3& x : r) b.extend(x);
-        return tooNear(b);
-    }
-    return false;
-}
-
 // The broad phase's box tests, several half-spaces (or mesh planes) at a time: four with AVX
 // where the processor has it (chosen at run time), else two with SSE2. There is no FMA, so
 // each lane makes the same roundings in the same order as the loops mayHoldByLoop keeps
@@ -453,12 +430,95 @@ __attribute__((target("avx"))) bool planesHoldAvx(const PackedPlanes& p, int cou
     return true;
 }
 
+// misses: the triangle lies outside a half-space when every vertex x has
+//   v = ((nx dx + ny dy) + nz dz) + k < -(((rel |d|_1 + abs) + kRound (|n|_1 |d|_1 + |k|)) + 1e-300),
+// d = x - o, |d|_1 = (|dx| + |dy|) + |dz|.
+bool triangleMissesSse2(const PackedHalfSpaces& p, int count, const Triangle& r) {
+    const __m128d sign = _mm_set1_pd(-0.0), tiny = _mm_set1_pd(1e-300), round = _mm_set1_pd(kRound);
+    for (size_t j = 0; j < size_t(count); j += 2) {
+        const __m128d nx = _mm_load_pd(&p.nx[j]), ny = _mm_load_pd(&p.ny[j]), nz = _mm_load_pd(&p.nz[j]);
+        const __m128d ox = _mm_load_pd(&p.ox[j]), oy = _mm_load_pd(&p.oy[j]), oz = _mm_load_pd(&p.oz[j]);
+        const __m128d k = _mm_load_pd(&p.k[j]), rel = _mm_load_pd(&p.rel[j]), abs = _mm_load_pd(&p.abs[j]);
+        const __m128d n1 = _mm_load_pd(&p.n1[j]), absK = _mm_andnot_pd(sign, k);
+        __m128d out = _mm_castsi128_pd(_mm_set1_epi64x(-1));
+        for (const glm::dvec3& x : r) {
+            const __m128d dx = _mm_sub_pd(_mm_set1_pd(x.x), ox), dy = _mm_sub_pd(_mm_set1_pd(x.y), oy),
+                          dz = _mm_sub_pd(_mm_set1_pd(x.z), oz);
+            const __m128d v = _mm_add_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(nx, dx), _mm_mul_pd(ny, dy)), _mm_mul_pd(nz, dz)), k);
+            const __m128d d1 = _mm_add_pd(_mm_add_pd(_mm_andnot_pd(sign, dx), _mm_andnot_pd(sign, dy)), _mm_andnot_pd(sign, dz));
+            const __m128d bound = _mm_add_pd(
+                _mm_add_pd(_mm_add_pd(_mm_mul_pd(rel, d1), abs), _mm_mul_pd(round, _mm_add_pd(_mm_mul_pd(n1, d1), absK))), tiny);
+            out = _mm_and_pd(out, _mm_cmplt_pd(v, _mm_xor_pd(bound, sign)));
+        }
+        if (_mm_movemask_pd(out)) return true;
+    }
+    return false;
+}
+
+__attribute__((target("avx"))) bool triangleMissesAvx(const PackedHalfSpaces& p, int count, const Triangle& r) {
+    const __m256d sign = _mm256_set1_pd(-0.0), tiny = _mm256_set1_pd(1e-300), round = _mm256_set1_pd(kRound);
+    for (size_t j = 0; j < size_t(count); j += 4) {
+        const __m256d nx = _mm256_load_pd(&p.nx[j]), ny = _mm256_load_pd(&p.ny[j]), nz = _mm256_load_pd(&p.nz[j]);
+        const __m256d ox = _mm256_load_pd(&p.ox[j]), oy = _mm256_load_pd(&p.oy[j]), oz = _mm256_load_pd(&p.oz[j]);
+        const __m256d k = _mm256_load_pd(&p.k[j]), rel = _mm256_load_pd(&p.rel[j]), abs = _mm256_load_pd(&p.abs[j]);
+        const __m256d n1 = _mm256_load_pd(&p.n1[j]), absK = _mm256_andnot_pd(sign, k);
+        __m256d out = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+        for (const glm::dvec3& x : r) {
+            const __m256d dx = _mm256_sub_pd(_mm256_set1_pd(x.x), ox), dy = _mm256_sub_pd(_mm256_set1_pd(x.y), oy),
+                          dz = _mm256_sub_pd(_mm256_set1_pd(x.z), oz);
+            const __m256d v =
+                _mm256_add_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(nx, dx), _mm256_mul_pd(ny, dy)), _mm256_mul_pd(nz, dz)), k);
+            const __m256d d1 =
+                _mm256_add_pd(_mm256_add_pd(_mm256_andnot_pd(sign, dx), _mm256_andnot_pd(sign, dy)), _mm256_andnot_pd(sign, dz));
+            const __m256d bound = _mm256_add_pd(
+                _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(rel, d1), abs), _mm256_mul_pd(round, _mm256_add_pd(_mm256_mul_pd(n1, d1), absK))),
+                tiny);
+            out = _mm256_and_pd(out, _mm256_cmp_pd(v, _mm256_xor_pd(bound, sign), _CMP_LT_OQ));
+        }
+        if (_mm256_movemask_pd(out)) return true;
+    }
+    return false;
+}
+
 }  // namespace
 
 bool ShadowQuery::useAvx(bool on) {
     const bool was = gAvx;
     gAvx = on && __builtin_cpu_supports("avx");
     return was;
+}
+
+bool ShadowQuery::misses(const Triangle& r) const {
+    if (gAvx ? triangleMissesAvx(packed_, count_, r) : triangleMissesSse2(packed_, count_, r)) return true;
+    if (pointLight_) {
+        Aabb b;
+        for (const glm::dvec3& x : r) b.extend(x);
+        return tooNear(b);
+    }
+    return false;
+}
+
+bool ShadowQuery::missesByLoop(const Triangle& r) const {
+    for (int i = 0; i < count_; ++i) {
+        const HalfSpace& h = hs_[size_t(i)];
+        bool out = true;
+        for (const glm::dvec3& x : r) {
+            const glm::dvec3 d = x - h.o;
+            const double v = glm::dot(h.n, d) + h.k;
+            const double bound = h.rel * norm1(d) + h.abs + kRound * (norm1(h.n) * norm1(d) + std::abs(h.k)) + 1e-300;
+            if (!(v < -bound)) {
+                out = false;
+                break;
+            }
+        }
+        if (out) return true;
+    }
+    if (pointLight_) {
+        Aabb b;
+        for (const glm::dvec3& x : r) b.extend(x);
+        return tooNear(b);
+    }
+    return false;
 }
 
 bool ShadowQuery::mayHoldByLoop(const Aabb& b) const {

@@ -43,6 +43,7 @@ Aabb shadowBox(const glm::dvec3* pts, int count, const Light& L, const Aabb& lim
 // box tests several at a time: entries past the count are zero (hold every box).
 struct PackedHalfSpaces {
     alignas(32) std::array<double, 16> nx{}, ny{}, nz{}, ox{}, oy{}, oz{}, k{}, rel{}, abs{};
+    alignas(32) std::array<double, 16> n1{};  // |n|_1
 };
 struct PackedPlanes {
     alignas(32) std::array<double, 16> nx{}, ny{}, nz{}, c{}, wx{}, wy{}, wz{}, err{};
@@ -68,9 +69,9 @@ public:
     bool mayHold(const Aabb& lsBox) const;
     // The same, one half-space at a time (the reference: mayHold takes several at a time).
     bool mayHoldByLoop(const Aabb& lsBox) const;
-    // Tests: whether mayHold and InMesh::mayHold take four at a time with AVX (where the
-    // processor has it: the default) or two with SSE2; returns the previous choice. Not
-    // while another thread tests boxes.
+    // Tests: whether mayHold, misses and InMesh::mayHold take four at a time with AVX
+    // (where the processor has it: the default) or two with SSE2; returns the previous
+    // choice. Not while another thread tests.
     static bool useAvx(bool on);
     // Clusters (ofCluster) only: true only when no caster point of the cluster has a
     // receiver point of `r` behind it by more than `beta` (metres, >= 0) on its ray: `r`
@@ -86,6 +87,8 @@ public:
     // vertices outside one half-space, or (point lights) all nearer the light than every
     // point of the caster. Tighter than a box for a triangle across a corner of the frustum.
     bool misses(const Triangle& lsTriangle) const;
+    // The same, one half-space at a time (the reference: misses takes several at a time).
+    bool missesByLoop(const Triangle& lsTriangle) const;
 
     // The same half-spaces in the mesh coordinates of an object placed by `lsFromMesh`
     // (valid while this query lives). The receivers of the object are the mesh's

@@ -292,9 +292,9 @@ TEST(ShadowQuery, NeverSkipsWhatTheExactTestReaches) {
                 skippedInMesh, skippedCluster);
 }
 
-// mayHold tests four half-spaces (or mesh planes) at a time, with AVX or SSE2: every answer
-// is the one-at-a-time loop's (mayHoldByLoop), on both, for triangles' and clusters'
-// queries, directional and point lights, counts of half-spaces that are and are not a
+// mayHold and misses test four half-spaces (or mesh planes) at a time, with AVX or SSE2:
+// every answer is the one-at-a-time loop's (mayHoldByLoop, missesByLoop), on both, for
+// triangles' and clusters' queries, directional and point lights, counts of half-spaces that are and are not a
 // multiple of four, boxes near and 100 km from the origin, boxes that are points, boxes
 // with a coordinate of zero, and boxes a rounding step either side of where the loop's
 // answer turns (where the allowances for rounding decide).
@@ -303,8 +303,15 @@ TEST(ShadowQuery, FourAtATimeIsOneAtATime) {
     std::uniform_real_distribution<double> u(-1.0, 1.0);
     size_t held = 0, skipped = 0, boundaries = 0;
     const bool avx = ShadowQuery::useAvx(true);  // the default: AVX where the processor has it
-    for (int trial = 0; trial < 800; ++trial) {
-        ShadowQuery::useAvx(trial % 2 == 0);  // every other trial on SSE2
+    // Each answer on both paths (AVX where the processor has it, and SSE2).
+    auto onBoth = [](const auto& fast) {
+        ShadowQuery::useAvx(true);
+        const bool wide = fast();
+        ShadowQuery::useAvx(false);
+        const bool narrow = fast();
+        return std::array<bool, 2>{wide, narrow};
+    };
+    for (int trial = 0; trial < 600; ++trial) {
         LightGeometry light;
         light.directional = trial % 3 != 0;
         light.direction = trial % 7 == 0 ? glm::dvec3(0, -1, 0) : glm::normalize(glm::dvec3(u(rng) * 0.8, -1.0, u(rng) * 0.8));
@@ -328,52 +335,53 @@ TEST(ShadowQuery, FourAtATimeIsOneAtATime) {
             Aabb ls{p - e, p + e};
             if (k % 9 == 0) ls.min.x = 0.0, ls.max.x = std::max(0.0, ls.max.x);  // a coordinate of zero
             const Aabb ms{toMesh(receiverPlace, p) - e, toMesh(receiverPlace, p) + e};
+            const Triangle tri = {ls.min, ls.max + glm::dvec3(u(rng), u(rng), u(rng)) * 0.1,
+                                  k % 7 == 0 ? ls.min : ls.min + glm::dvec3(u(rng), u(rng), u(rng)) * 0.3};
             for (const ShadowQuery* query : {&q, &cq}) {
-                const bool answer = query->mayHold(ls);
-                ASSERT_EQ(answer, query->mayHoldByLoop(ls)) << "trial " << trial << " box " << k;
+                const bool answer = query->mayHoldByLoop(ls);
+                for (bool fast : onBoth([&] { return query->mayHold(ls); })) ASSERT_EQ(answer, fast) << "trial " << trial << " box " << k;
                 (answer ? held : skipped) += 1;
+                const bool missed = query->missesByLoop(tri);
+                for (bool fast : onBoth([&] { return query->misses(tri); }))
+                    ASSERT_EQ(missed, fast) << "trial " << trial << " triangle " << k;
+                (missed ? skipped : held) += 1;
             }
             for (const ShadowQuery::InMesh* query : {&qMesh, &cqMesh}) {
-                const bool answer = query->mayHold(ms);
-                ASSERT_EQ(answer, query->mayHoldByLoop(ms)) << "trial " << trial << " mesh box " << k;
+                const bool answer = query->mayHoldByLoop(ms);
+                for (bool fast : onBoth([&] { return query->mayHold(ms); }))
+                    ASSERT_EQ(answer, fast) << "trial " << trial << " mesh box " << k;
                 (answer ? held : skipped) += 1;
             }
-            // Where the answer turns: the box moved along v until the loop's answer changes,
-            // then bisected to adjacent positions, where the rounding allowances decide.
+            // Where the answer turns: the box (or triangle) moved along v until the loop's
+            // answer changes, then bisected to adjacent positions, where the rounding
+            // allowances decide; there both answers must agree.
             if (k % 3 != 0) continue;
             const glm::dvec3 v = glm::normalize(glm::dvec3(u(rng), u(rng), u(rng)));
-            auto boundary = [&](const auto& holds, const Aabb& box) {
-                auto at = [&](double t) { return Aabb{box.min + v * t, box.max + v * t}; };
+            auto turning = [&](const auto& loop, const auto& fast, const char* what) {
                 double in = 0.0, out = 1.0;
-                if (!holds(at(in))) return;
-                while (holds(at(out)) && out < 1e7) out *= 2;
-                if (holds(at(out))) return;
+                const bool start = loop(in);
+                while (loop(out) == start && out < 1e7) out *= 2;
+                if (loop(out) == start) return;
                 for (int step = 0; step < 200 && std::nextafter(in, out) != out; ++step) {
                     const double mid = 0.5 * (in + out);
-                    (holds(at(mid)) ? in : out) = mid;
+                    (loop(mid) == start ? in : out) = mid;
                 }
                 ++boundaries;
-                for (double t : {in, out, std::nextafter(in, -1e300), std::nextafter(out, 1e300)}) {
-                    const Aabb moved = at(t);
-                    ASSERT_EQ(holds(moved), holds.wide(moved)) << "trial " << trial << " box " << k << " at " << t;
-                }
+                for (double at : {in, out, std::nextafter(in, -1e300), std::nextafter(out, 1e300)})
+                    for (bool answer : onBoth([&] { return fast(at); }))
+                        ASSERT_EQ(loop(at), answer) << what << ", trial " << trial << " #" << k << " at " << at;
             };
+            auto movedBox = [&](const Aabb& b, double at) { return Aabb{b.min + v * at, b.max + v * at}; };
+            auto movedTriangle = [&](double at) { return Triangle{tri[0] + v * at, tri[1] + v * at, tri[2] + v * at}; };
             for (const ShadowQuery* query : {&q, &cq}) {
-                struct {
-                    const ShadowQuery* query;
-                    bool operator()(const Aabb& b) const { return query->mayHoldByLoop(b); }
-                    bool wide(const Aabb& b) const { return query->mayHold(b); }
-                } holds{query};
-                boundary(holds, ls);
+                turning([&](double at) { return query->mayHoldByLoop(movedBox(ls, at)); },
+                        [&](double at) { return query->mayHold(movedBox(ls, at)); }, "box");
+                turning([&](double at) { return query->missesByLoop(movedTriangle(at)); },
+                        [&](double at) { return query->misses(movedTriangle(at)); }, "triangle");
             }
-            for (const ShadowQuery::InMesh* query : {&qMesh, &cqMesh}) {
-                struct {
-                    const ShadowQuery::InMesh* query;
-                    bool operator()(const Aabb& b) const { return query->mayHoldByLoop(b); }
-                    bool wide(const Aabb& b) const { return query->mayHold(b); }
-                } holds{query};
-                boundary(holds, ms);
-            }
+            for (const ShadowQuery::InMesh* query : {&qMesh, &cqMesh})
+                turning([&](double at) { return query->mayHoldByLoop(movedBox(ms, at)); },
+                        [&](double at) { return query->mayHold(movedBox(ms, at)); }, "mesh box");
         }
     }
     EXPECT_GT(boundaries, 5000u);
