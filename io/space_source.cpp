@@ -556,30 +556,19 @@ Status SpaceSource::load(ChunkCoord c, Space& space, std::vector<Diagnostic>& la
 }
 
 Status SpaceSource::load(const std::vector<ChunkCoord>& cs, Space& space, std::vector<Diagnostic>& lateDiagnostics) {
-    if (cs.size() < 2) return cs.empty() ? Status::ok() : load(cs[0], space, lateDiagnostics);
-    if (Status s = stopStatus(); !s) return s;
-    std::vector<std::optional<Expected<ChunkFile>>> read(cs.size());
-    tbb::parallel_for(size_t(0), cs.size(), [&](size_t k) {
-        if (!stopRequested()) read[k].emplace(reread(cs[k]));  // else left unread: stopStatus below
-    });
-    for (size_t k = 0; k < cs.size(); ++k) {
-        if (Status s = stopStatus(); !s) return s;
-        if (!read[k]) read[k].emplace(reread(cs[k]));  // left unread by a stop request withdrawn since
-        if (Status s = adopt(cs[k], std::move(*read[k]), space, lateDiagnostics); !s) return s;
-    }
-    return Status::ok();
+    return load(cs, space, lateDiagnostics, ReadAhead{});
 }
 
 Status SpaceSource::load(const std::vector<ChunkCoord>& cs, Space& space, std::vector<Diagnostic>& lateDiagnostics,
                          ReadAhead ahead) {
-    if (ahead.empty()) return load(cs, space, lateDiagnostics);
+    if (cs.size() < 2 && ahead.empty()) return cs.empty() ? Status::ok() : load(cs[0], space, lateDiagnostics);
     if (Status s = stopStatus(); !s) return s;
     std::vector<ChunkCoord> rest;  // not read ahead: read now, in parallel
     for (ChunkCoord c : cs)
         if (!ahead.count(c)) rest.push_back(c);
     std::vector<std::optional<Expected<ChunkFile>>> read(rest.size());
     tbb::parallel_for(size_t(0), rest.size(), [&](size_t k) {
-        if (!stopRequested()) read[k].emplace(reread(rest[k]));
+        if (!stopRequested()) read[k].emplace(reread(rest[k]));  // else left unread: read below
     });
     for (size_t k = 0; k < rest.size(); ++k)
         if (read[k]) ahead.emplace(rest[k], std::move(*read[k]));
