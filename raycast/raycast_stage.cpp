@@ -578,9 +578,9 @@ struct SearchPass {
         };
         std::vector<Block> parts(blocks);
         std::atomic<size_t> found{std::numeric_limits<size_t>::max()};
-        const bool ftz = (_mm_getcsr() & FloatModeScope::kFtzDaz) == FloatModeScope::kFtzDaz;
+        const FloatModeScope::Underflow callers = FloatModeScope::current();
         tbb::parallel_for(size_t(0), blocks, [&](size_t i) {
-            const FloatModeScope mode(ftz ? FloatModeScope::Underflow::FlushToZero : FloatModeScope::Underflow::Gradual);
+            const FloatModeScope mode(callers);
             Block& part = parts[i];
             const size_t begin = i * kTargetBlock, end = std::min(points.size(), begin + kTargetBlock);
             part.witness = firstWitness(task, object, L, points, begin, end, &found, part.lit, part.rays);

@@ -449,9 +449,9 @@ void findReceivers(const Aim& aim, Receivers& r) {
     std::vector<Part> parts(blocks);
     // Every block in the calling thread's floating-point mode (the stage's tasks flush
     // denormals to zero; another thread running a block may be in another mode).
-    const bool ftz = (_mm_getcsr() & FloatModeScope::kFtzDaz) == FloatModeScope::kFtzDaz;
+    const FloatModeScope::Underflow callers = FloatModeScope::current();
     tbb::parallel_for(uint32_t(0), blocks, [&](uint32_t b) {
-        const FloatModeScope mode(ftz ? FloatModeScope::Underflow::FlushToZero : FloatModeScope::Underflow::Gradual);
+        const FloatModeScope mode(callers);
         Part& part = parts[b];
         Receivers pr{part.sources, part.weights, part.band, part.bandWeights};
         findReceiversIn(aim, b * kBlock, std::min(n, (b + 1) * kBlock), pr);

@@ -24,6 +24,11 @@ public:
     FloatModeScope& operator=(const FloatModeScope&) = delete;
 
     static constexpr unsigned int kFtzDaz = 0x8040;  // MXCSR bits 15 (FTZ) and 6 (DAZ)
+    // The calling thread's mode: for the tasks it hands to other threads, which may be in
+    // another (a scope of current() in each keeps the work in the caller's mode).
+    static Underflow current() {
+        return (_mm_getcsr() & kFtzDaz) == kFtzDaz ? Underflow::FlushToZero : Underflow::Gradual;
+    }
 
 private:
     unsigned int saved_;
