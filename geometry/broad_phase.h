@@ -72,11 +72,7 @@ public:
     // left child first.
     template <class Pred, class Leaf>
     bool visit(const Pred& mayHold, const Leaf& leaf) const {
-        return tree_.visit([&](const glm::dvec3& lo, const glm::dvec3& hi) { return mayHold(Aabb{lo, hi}); },
-                           [&](uint32_t t) {
-                               Aabb box;
-                               return itemBox(t, box) && mayHold(box) && leaf(t);
-                           });
+        return visit(mayHold, [](uint32_t) { return false; }, leaf);
     }
 
     // visit, with `known(t)` asked of a triangle before its box: true only where leaf(t)
