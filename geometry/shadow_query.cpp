@@ -326,12 +326,13 @@ bool ShadowQuery::tooNear(const Aabb& b) const {
     return glm::length(far) * (1 + 1e-9) < near_;
 }
 
-// The broad phase's box tests, several half-spaces (or mesh planes) at a time: four with AVX
-// where the processor has it (chosen at run time), else two with SSE2. There is no FMA, so
-// each lane makes the same roundings in the same order as the loops mayHoldByLoop keeps
-// (_mm_max_pd(y, x) is std::max(x, y): x unless x < y; the negation flips the sign bit):
-// the answers are the loops' bit for bit. On worlds of many instances these tests are
-// a third of the geometry stage. Entries past `count` are zero and hold every box.
+// The broad phase's box and triangle tests, four half-spaces (or mesh planes) at a time
+// with AVX where the processor has it (chosen at run time); without it, the loops
+// (mayHoldByLoop, missesByLoop). There is no FMA, so each lane makes the same roundings in
+// the same order as the loops (_mm256_max_pd(y, x) is std::max(x, y): x unless x < y; the
+// negation flips the sign bit): the answers are the loops' bit for bit. On worlds of many
+// instances these tests are a third of the geometry stage. Entries past `count` are zero
+// and hold every box.
 //
 // Half-spaces, per axis a in order (best from k, spread from 0, terms from |k|):
 //   lo = b.min[a] - o[a], hi = b.max[a] - o[a]; far = max(|lo|, |hi|);
@@ -343,29 +344,6 @@ bool ShadowQuery::tooNear(const Aabb& b) const {
 namespace {
 
 bool gAvx = __builtin_cpu_supports("avx");
-
-bool halfSpacesHoldSse2(const PackedHalfSpaces& p, int count, const Aabb& b) {
-    const __m128d sign = _mm_set1_pd(-0.0), tiny = _mm_set1_pd(1e-300), round = _mm_set1_pd(kRound);
-    for (size_t j = 0; j < size_t(count); j += 2) {
-        const __m128d k = _mm_load_pd(&p.k[j]);
-        __m128d best = k, spread = _mm_setzero_pd(), terms = _mm_andnot_pd(sign, k);
-        auto axis = [&](double bMin, double bMax, const double* n, const double* o) {
-            const __m128d nv = _mm_load_pd(n), ov = _mm_load_pd(o);
-            const __m128d lo = _mm_sub_pd(_mm_set1_pd(bMin), ov), hi = _mm_sub_pd(_mm_set1_pd(bMax), ov);
-            best = _mm_add_pd(best, _mm_max_pd(_mm_mul_pd(nv, hi), _mm_mul_pd(nv, lo)));
-            const __m128d far = _mm_max_pd(_mm_andnot_pd(sign, hi), _mm_andnot_pd(sign, lo));
-            spread = _mm_add_pd(spread, far);
-            terms = _mm_add_pd(terms, _mm_mul_pd(_mm_andnot_pd(sign, nv), far));
-        };
-        axis(b.min.x, b.max.x, &p.nx[j], &p.ox[j]);
-        axis(b.min.y, b.max.y, &p.ny[j], &p.oy[j]);
-        axis(b.min.z, b.max.z, &p.nz[j], &p.oz[j]);
-        const __m128d allowed = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_load_pd(&p.rel[j]), spread), _mm_load_pd(&p.abs[j])),
-                                           _mm_mul_pd(round, terms));
-        if (_mm_movemask_pd(_mm_cmplt_pd(best, _mm_sub_pd(_mm_xor_pd(allowed, sign), tiny)))) return false;
-    }
-    return true;
-}
 
 __attribute__((target("avx"))) bool halfSpacesHoldAvx(const PackedHalfSpaces& p, int count, const Aabb& b) {
     const __m256d sign = _mm256_set1_pd(-0.0), tiny = _mm256_set1_pd(1e-300), round = _mm256_set1_pd(kRound);
@@ -387,25 +365,6 @@ __attribute__((target("avx"))) bool halfSpacesHoldAvx(const PackedHalfSpaces& p,
             _mm256_add_pd(_mm256_mul_pd(_mm256_load_pd(&p.rel[j]), spread), _mm256_load_pd(&p.abs[j])), _mm256_mul_pd(round, terms));
         const __m256d bound = _mm256_sub_pd(_mm256_xor_pd(allowed, sign), tiny);
         if (_mm256_movemask_pd(_mm256_cmp_pd(best, bound, _CMP_LT_OQ))) return false;
-    }
-    return true;
-}
-
-bool planesHoldSse2(const PackedPlanes& p, int count, const Aabb& b) {
-    const glm::dvec3 far = glm::max(glm::abs(b.min), glm::abs(b.max));
-    const __m128d loX = _mm_set1_pd(b.min.x), loY = _mm_set1_pd(b.min.y), loZ = _mm_set1_pd(b.min.z);
-    const __m128d hiX = _mm_set1_pd(b.max.x), hiY = _mm_set1_pd(b.max.y), hiZ = _mm_set1_pd(b.max.z);
-    const __m128d farX = _mm_set1_pd(far.x), farY = _mm_set1_pd(far.y), farZ = _mm_set1_pd(far.z);
-    const __m128d tiny = _mm_set1_pd(1e-300), sign = _mm_set1_pd(-0.0);
-    for (size_t i = 0; i < size_t(count); i += 2) {
-        const __m128d nx = _mm_load_pd(&p.nx[i]), ny = _mm_load_pd(&p.ny[i]), nz = _mm_load_pd(&p.nz[i]);
-        __m128d best = _mm_add_pd(_mm_load_pd(&p.c[i]), _mm_max_pd(_mm_mul_pd(nx, hiX), _mm_mul_pd(nx, loX)));
-        best = _mm_add_pd(best, _mm_max_pd(_mm_mul_pd(ny, hiY), _mm_mul_pd(ny, loY)));
-        best = _mm_add_pd(best, _mm_max_pd(_mm_mul_pd(nz, hiZ), _mm_mul_pd(nz, loZ)));
-        const __m128d dot = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_load_pd(&p.wx[i]), farX), _mm_mul_pd(_mm_load_pd(&p.wy[i]), farY)),
-                                       _mm_mul_pd(_mm_load_pd(&p.wz[i]), farZ));
-        const __m128d bound = _mm_sub_pd(_mm_xor_pd(_mm_add_pd(_mm_load_pd(&p.err[i]), dot), sign), tiny);
-        if (_mm_movemask_pd(_mm_cmplt_pd(best, bound))) return false;
     }
     return true;
 }
@@ -433,28 +392,6 @@ __attribute__((target("avx"))) bool planesHoldAvx(const PackedPlanes& p, int cou
 // misses: the triangle lies outside a half-space when every vertex x has
 //   v = ((nx dx + ny dy) + nz dz) + k < -(((rel |d|_1 + abs) + kRound (|n|_1 |d|_1 + |k|)) + 1e-300),
 // d = x - o, |d|_1 = (|dx| + |dy|) + |dz|.
-bool triangleMissesSse2(const PackedHalfSpaces& p, int count, const Triangle& r) {
-    const __m128d sign = _mm_set1_pd(-0.0), tiny = _mm_set1_pd(1e-300), round = _mm_set1_pd(kRound);
-    for (size_t j = 0; j < size_t(count); j += 2) {
-        const __m128d nx = _mm_load_pd(&p.nx[j]), ny = _mm_load_pd(&p.ny[j]), nz = _mm_load_pd(&p.nz[j]);
-        const __m128d ox = _mm_load_pd(&p.ox[j]), oy = _mm_load_pd(&p.oy[j]), oz = _mm_load_pd(&p.oz[j]);
-        const __m128d k = _mm_load_pd(&p.k[j]), rel = _mm_load_pd(&p.rel[j]), abs = _mm_load_pd(&p.abs[j]);
-        const __m128d n1 = _mm_load_pd(&p.n1[j]), absK = _mm_andnot_pd(sign, k);
-        __m128d out = _mm_castsi128_pd(_mm_set1_epi64x(-1));
-        for (const glm::dvec3& x : r) {
-            const __m128d dx = _mm_sub_pd(_mm_set1_pd(x.x), ox), dy = _mm_sub_pd(_mm_set1_pd(x.y), oy),
-                          dz = _mm_sub_pd(_mm_set1_pd(x.z), oz);
-            const __m128d v = _mm_add_pd(_mm_add_pd(_mm_add_pd(_mm_mul_pd(nx, dx), _mm_mul_pd(ny, dy)), _mm_mul_pd(nz, dz)), k);
-            const __m128d d1 = _mm_add_pd(_mm_add_pd(_mm_andnot_pd(sign, dx), _mm_andnot_pd(sign, dy)), _mm_andnot_pd(sign, dz));
-            const __m128d bound = _mm_add_pd(
-                _mm_add_pd(_mm_add_pd(_mm_mul_pd(rel, d1), abs), _mm_mul_pd(round, _mm_add_pd(_mm_mul_pd(n1, d1), absK))), tiny);
-            out = _mm_and_pd(out, _mm_cmplt_pd(v, _mm_xor_pd(bound, sign)));
-        }
-        if (_mm_movemask_pd(out)) return true;
-    }
-    return false;
-}
-
 __attribute__((target("avx"))) bool triangleMissesAvx(const PackedHalfSpaces& p, int count, const Triangle& r) {
     const __m256d sign = _mm256_set1_pd(-0.0), tiny = _mm256_set1_pd(1e-300), round = _mm256_set1_pd(kRound);
     for (size_t j = 0; j < size_t(count); j += 4) {
@@ -489,13 +426,15 @@ bool ShadowQuery::useAvx(bool on) {
 }
 
 bool ShadowQuery::misses(const Triangle& r) const {
-    if (gAvx ? triangleMissesAvx(packed_, count_, r) : triangleMissesSse2(packed_, count_, r)) return true;
-    if (pointLight_) {
-        Aabb b;
-        for (const glm::dvec3& x : r) b.extend(x);
-        return tooNear(b);
-    }
-    return false;
+    if (!gAvx) return missesByLoop(r);
+    return triangleMissesAvx(packed_, count_, r) || triangleTooNear(r);
+}
+
+bool ShadowQuery::triangleTooNear(const Triangle& r) const {
+    if (!pointLight_) return false;
+    Aabb b;
+    for (const glm::dvec3& x : r) b.extend(x);
+    return tooNear(b);
 }
 
 bool ShadowQuery::missesByLoop(const Triangle& r) const {
@@ -513,12 +452,7 @@ bool ShadowQuery::missesByLoop(const Triangle& r) const {
         }
         if (out) return true;
     }
-    if (pointLight_) {
-        Aabb b;
-        for (const glm::dvec3& x : r) b.extend(x);
-        return tooNear(b);
-    }
-    return false;
+    return triangleTooNear(r);
 }
 
 bool ShadowQuery::mayHoldByLoop(const Aabb& b) const {
@@ -539,8 +473,8 @@ bool ShadowQuery::mayHoldByLoop(const Aabb& b) const {
 }
 
 bool ShadowQuery::mayHold(const Aabb& b) const {
-    if (tooNear(b)) return false;
-    return gAvx ? halfSpacesHoldAvx(packed_, count_, b) : halfSpacesHoldSse2(packed_, count_, b);
+    if (!gAvx) return mayHoldByLoop(b);
+    return !tooNear(b) && halfSpacesHoldAvx(packed_, count_, b);
 }
 
 ShadowQuery::InMesh ShadowQuery::inMesh(const RowTransform& m) const {
@@ -562,7 +496,7 @@ ShadowQuery::InMesh ShadowQuery::inMesh(const RowTransform& m) const {
             if (!known) addSlabs(hs, count, axis);
         }
     InMesh q;
-    q.count_ = count;  // an odd count's pair ends on the padding plane (all zero)
+    q.count_ = count;  // mayHold's last four may reach past it: zero planes, holding every box
     if (pointLight_ && near_ > 0) {
         q.query_ = this;
         q.map_ = m;
@@ -612,7 +546,8 @@ Aabb ShadowQuery::InMesh::lsBoxOf(const Aabb& b) const {
 }
 
 bool ShadowQuery::InMesh::mayHold(const Aabb& b) const {
-    if (!(gAvx ? planesHoldAvx(planes_, count_, b) : planesHoldSse2(planes_, count_, b))) return false;
+    if (!gAvx) return mayHoldByLoop(b);
+    if (!planesHoldAvx(planes_, count_, b)) return false;
     return query_ ? !query_->tooNear(lsBoxOf(b)) : true;
 }
 

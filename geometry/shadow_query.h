@@ -40,7 +40,7 @@ Aabb shadowBox(const glm::dvec3* pts, int count, const Light& L, const Aabb& lim
 
 // ShadowQuery's half-spaces (value n . (x - o) + k, allowed down to -(rel |x - o|_1 + abs +
 // rounding)) and InMesh's planes (value n . y + c, within err + w . |y|) by component, for
-// box tests several at a time: entries past the count are zero (hold every box).
+// box tests four at a time: entries past the count are zero (hold every box).
 struct PackedHalfSpaces {
     alignas(32) std::array<double, 16> nx{}, ny{}, nz{}, ox{}, oy{}, oz{}, k{}, rel{}, abs{};
     alignas(32) std::array<double, 16> n1{};  // |n|_1
@@ -67,11 +67,11 @@ public:
 
     // False only when no point of the window-local box lies in the frustum.
     bool mayHold(const Aabb& lsBox) const;
-    // The same, one half-space at a time (the reference: mayHold takes several at a time).
+    // The same, one half-space at a time: the reference, and mayHold without AVX.
     bool mayHoldByLoop(const Aabb& lsBox) const;
-    // Tests: whether mayHold, misses and InMesh::mayHold take four at a time with AVX
-    // (where the processor has it: the default) or two with SSE2; returns the previous
-    // choice. Not while another thread tests.
+    // Tests: whether mayHold, misses and InMesh::mayHold take four half-spaces at a time
+    // with AVX (where the processor has it: the default) or go one at a time (the loops);
+    // returns the previous choice. Not while another thread tests.
     static bool useAvx(bool on);
     // Clusters (ofCluster) only: true only when no caster point of the cluster has a
     // receiver point of `r` behind it by more than `beta` (metres, >= 0) on its ray: `r`
@@ -87,7 +87,7 @@ public:
     // vertices outside one half-space, or (point lights) all nearer the light than every
     // point of the caster. Tighter than a box for a triangle across a corner of the frustum.
     bool misses(const Triangle& lsTriangle) const;
-    // The same, one half-space at a time (the reference: misses takes several at a time).
+    // The same, one half-space at a time: the reference, and misses without AVX.
     bool missesByLoop(const Triangle& lsTriangle) const;
 
     // The same half-spaces in the mesh coordinates of an object placed by `lsFromMesh`
@@ -97,7 +97,7 @@ public:
     public:
         // False only when no point of the mesh box, mapped to the window, lies in the frustum.
         bool mayHold(const Aabb& msBox) const;
-        // The same, one plane at a time (the reference: mayHold takes several at a time).
+        // The same, one plane at a time: the reference, and mayHold without AVX.
         bool mayHoldByLoop(const Aabb& msBox) const;
 
     private:
@@ -128,6 +128,8 @@ private:
     // Directional lights: the two half-spaces of the slab normal to d x axis holding the caster.
     void addSlabs(std::array<HalfSpace, 16>& to, int& count, const glm::dvec3& axis) const;
     bool tooNear(const Aabb& lsBox) const;
+    // Point lights: tooNear of the triangle's box (false for other lights).
+    bool triangleTooNear(const Triangle& lsTriangle) const;
     // hs_ by component for mayHold; made by pack() once hs_ is complete.
     void pack();
     std::array<HalfSpace, 16> hs_;  // frustum_ then the world axes' slabs
