@@ -112,14 +112,14 @@ std::vector<Task> gatherTasks(const ChunkVerdicts& cv, bool crossCheck, std::vec
 struct WindowScene {
     WindowScene(const BakeWindow& w, const GeometryOptions& o, const std::vector<bool>& lightNeeded)
         : window(w), options(o), margin(windowMargin(w)), limits(grown(w.lsBounds, 1.0)), objectBoxes(receiverBoxes()),
-          objectTree(objectBoxes), lights(testedLights(w)) {
+          objectTree(objectBoxes), lights(testedLights(w)), ground(w, margin, !o.exhaustive) {
         const size_t count = lightNeeded.size();
         lightGeom.resize(count);
         rules.resize(count);
         for (size_t l = 0; l < count; ++l) {
             const Light& L = lights[l];
             lightGeom[l] = LightGeometry{L.type == LightType::Directional, L.direction, L.position};
-            if (lightNeeded[l]) rules[l] = std::make_unique<ReceiverRules>(w, L, lightGeom[l], margin, !o.exhaustive);
+            if (lightNeeded[l]) rules[l] = std::make_unique<ReceiverRules>(w, L, lightGeom[l], ground);
         }
     }
 
@@ -142,6 +142,7 @@ struct WindowScene {
     std::vector<Aabb> objectBoxes;
     ObjectTree objectTree;
     std::vector<Light> lights;  // dilated by the normal bias (testedLights)
+    ReceiverGround ground;      // the terrain rule per receiver, for every light's rules
     std::vector<LightGeometry> lightGeom;
     std::vector<std::unique_ptr<ReceiverRules>> rules;  // for the lights some task needs
 

@@ -84,20 +84,6 @@ bool partAboveGround(const BakeWindow& w, const Triangle& t, const Aabb& box, do
 
 }  // namespace
 
-ReceiverRules::ReceiverRules(const BakeWindow& w, const Light& L, const LightGeometry& lg, double margin, bool bound)
-    : w_(w), L_(L), lg_(lg), margin_(margin), bound_(bound), tables_(w.objects.size()) {
-    for (auto& t : tables_) t.store(nullptr, std::memory_order_relaxed);
-}
-
-ReceiverRules::~ReceiverRules() {
-    for (size_t k = 0; k < tables_.size(); ++k) {
-        std::atomic<Block*>* table = tables_[k].load(std::memory_order_relaxed);
-        if (!table) continue;
-        for (size_t b = 0; b < blockCount(k); ++b) delete table[b].load(std::memory_order_relaxed);
-        delete[] table;
-    }
-}
-
 bool ReceiverRules::facesAway(const Receiver& r) const {
     // Facing: a one-sided receiver the light meets from behind or edge-on gets nothing.
     if (!r.twoSided && exactFacing(r.tri, r.mirrored, lg_) <= 0) return true;
@@ -105,20 +91,41 @@ bool ReceiverRules::facesAway(const Receiver& r) const {
     return boxOutOfReach(L_, r.box);
 }
 
-double ReceiverRules::computeRest(const Receiver& r, Entry& e) const {
-    // Terrain (terrain itself exempt): wholly deeper than the tolerance under the
-    // lowest ground under its box (cheap), then under the ground triangles over it.
+double ReceiverRules::computeRest(uint32_t object, uint32_t triangle, const Receiver& r, Entry& e) const {
+    // Terrain (terrain itself exempt): wholly deeper than the tolerance under the ground
+    // (ReceiverGround: once per receiver, for every light).
     if (w_.hasTerrain && !r.terrain) {
-        if (underTerrain(w_, {r.box.min, r.box.max}, margin_)) return -1;
-        if (!bound_) return bias(r);
-        auto part = std::make_unique<std::vector<glm::dvec3>>();
-        if (partAboveGround(w_, r.tri, r.box, margin_, *part)) {
-            if (part->empty()) return -1;
-            const std::vector<glm::dvec3>* expected = nullptr;
-            if (e.part.compare_exchange_strong(expected, part.get(), std::memory_order_acq_rel)) part.release();
-        }
+        const ReceiverGround::Answer g = ground_.of(object, triangle, r);
+        if (g.buried) return -1;
+        if (g.part) e.part.store(g.part, std::memory_order_release);
     }
     return bias(r);
+}
+
+ReceiverGround::Answer ReceiverGround::of(uint32_t object, uint32_t triangle, const Receiver& r) const {
+    Entry& e = table_.at(object, triangle);
+    uint8_t state = e.state.load(std::memory_order_acquire);  // after the part it publishes
+    if (state == kUnknown) {
+        // Wholly deeper than the tolerance under the lowest ground under its box (cheap),
+        // then under the ground triangles over it.
+        state = kAbove;
+        if (underTerrain(w_, {r.box.min, r.box.max}, margin_)) {
+            state = kBuried;
+        } else if (bound_) {
+            auto part = std::make_unique<std::vector<glm::dvec3>>();
+            if (partAboveGround(w_, r.tri, r.box, margin_, *part)) {
+                if (part->empty()) {
+                    state = kBuried;
+                } else {
+                    const std::vector<glm::dvec3>* expected = nullptr;
+                    if (e.part.compare_exchange_strong(expected, part.get(), std::memory_order_acq_rel)) part.release();
+                }
+            }
+        }
+        e.state.store(state, std::memory_order_release);
+    }
+    if (state == kBuried) return Answer{true, nullptr};
+    return Answer{false, e.part.load(std::memory_order_acquire)};
 }
 
 double ReceiverRules::bias(const Receiver& r) const { return biasLowerBound(L_, r.tri); }

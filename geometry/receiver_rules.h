@@ -33,84 +33,30 @@ inline Aabb triangleBox(const Triangle& t) {
 // (conservative: the box's top against the lowest terrain sample around it).
 bool underTerrain(const BakeWindow& w, const std::array<glm::dvec3, 2>& box, double margin);
 
-// Per receiver triangle (object, triangle) and light, computed on first use (most
-// receivers of a window are never tested; an object's table is made when a query first
-// reaches it): -1 when the receiver rules exclude it, else a lower bound of the bias
-// (metres) that applies to it; and where the terrain rule applies, the receiver's part
-// above the ground (partAboveGround: once per receiver, not per caster triangle). Safe
-// to call from several threads: a value is computed again at worst, always the same.
-class ReceiverRules {
+// Entries per receiver triangle (object, triangle) of a window, each made on first touch.
+// Two levels, each made on first touch: a dense mesh's queries touch a few of its 100k+
+// triangles, and a table of them all, made and cleared per object, window and light,
+// would cost more than the queries. Safe to use from several threads; `Entry` holds
+// atomics and frees what it owns in its destructor.
+template <class Entry>
+class TriangleTable {
 public:
-    // `bound`: also compute the part above the ground (off for the exhaustive reference,
-    // which uses no double filter beyond the lowest ground under a receiver's box).
-    ReceiverRules(const BakeWindow& w, const Light& L, const LightGeometry& lg, double margin, bool bound);
-    ~ReceiverRules();
-    ReceiverRules(const ReceiverRules&) = delete;
-    ReceiverRules& operator=(const ReceiverRules&) = delete;
-
-    // `receiver()` makes the receiver when the value is not known yet. `above`, when given,
-    // receives the receiver's part above the ground (nullptr: the terrain rule gives no
-    // bound there; check it only when the result is >= 0).
-    template <class Make>
-    double beta(uint32_t object, uint32_t triangle, const Make& receiver, const std::vector<glm::dvec3>** above = nullptr) const {
-        Entry& e = entry(object, triangle);
-        double b = e.beta.load(std::memory_order_acquire);  // after the part it publishes
-        if (b == kUnknown || b == kFacesLight) {
-            // Facing, range and cone already passed: the terrain rule and the bias only.
-            b = b == kFacesLight ? computeRest(receiver(), e) : compute(receiver(), e);
-            e.beta.store(b, std::memory_order_release);
-        }
-        if (above) *above = e.part.load(std::memory_order_acquire);
-        return b;
+    explicit TriangleTable(const BakeWindow& w) : w_(w), tables_(w.objects.size()) {
+        for (auto& t : tables_) t.store(nullptr, std::memory_order_relaxed);
     }
-
-    // True when the cheap rules exclude the receiver: facing, range and cone (no terrain,
-    // no clipping). Evaluated once per receiver and kept, as beta is (which then evaluates
-    // only the rest): a rock's back faces, met by the columns of its own front faces, are
-    // dismissed before any filter is placed against them. `receiver()` as for beta.
-    template <class Make>
-    bool excludedByFacing(uint32_t object, uint32_t triangle, const Make& receiver) const {
-        Entry& e = entry(object, triangle);
-        double b = e.beta.load(std::memory_order_acquire);
-        if (b == kUnknown) {
-            const double first = facesAway(receiver()) ? kExcluded : kFacesLight;
-            // Unless another thread stored a value meanwhile (the same answer, or a whole one).
-            if (e.beta.compare_exchange_strong(b, first, std::memory_order_acq_rel)) b = first;
+    ~TriangleTable() {
+        for (size_t k = 0; k < tables_.size(); ++k) {
+            std::atomic<Block*>* table = tables_[k].load(std::memory_order_relaxed);
+            if (!table) continue;
+            for (size_t b = 0; b < blockCount(k); ++b) delete table[b].load(std::memory_order_relaxed);
+            delete[] table;
         }
-        return b == kExcluded;
     }
+    TriangleTable(const TriangleTable&) = delete;
+    TriangleTable& operator=(const TriangleTable&) = delete;
 
-    // True when an earlier question settled that the rules exclude the receiver (beta -1,
-    // or excludedByFacing true); false when they let it through or nothing was asked yet.
-    // Reads only: the broad phase asks it of every leaf triangle before its box test.
-    bool knownExcluded(uint32_t object, uint32_t triangle) const {
-        const std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
-        if (!table) return false;
-        const Block* block = table[triangle / kBlock].load(std::memory_order_acquire);
-        return block && block->entries[triangle % kBlock].beta.load(std::memory_order_acquire) == kExcluded;
-    }
-
-private:
-    static constexpr double kUnknown = -2.0;  // every computed value is -1 or >= 0
-    static constexpr double kExcluded = -1.0;
-    static constexpr double kFacesLight = -3.0;  // facing, range and cone passed; the rest not evaluated
-    static constexpr size_t kBlock = 64;      // triangles per block of the table
-    struct Entry {
-        std::atomic<double> beta{kUnknown};
-        std::atomic<const std::vector<glm::dvec3>*> part{nullptr};  // owned; set before beta
-    };
-    struct Block {
-        Entry entries[kBlock];
-        ~Block() {
-            for (Entry& e : entries) delete e.part.load(std::memory_order_relaxed);
-        }
-    };
-    size_t blockCount(size_t object) const { return (w_.objects[object].mesh->triangles.size() + kBlock - 1) / kBlock; }
-
-    // The receiver's entry. Two levels, each made on first touch: a dense mesh's queries
-    // touch a few of its 100k+ triangles, and a table of them all, made and cleared per
-    // object, window and light, would cost more than the queries.
-    Entry& entry(uint32_t object, uint32_t triangle) const {
+    // The entry, made (with its block) when missing.
+    Entry& at(uint32_t object, uint32_t triangle) const {
         std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
         if (!table) {
             const size_t n = blockCount(object);
@@ -128,22 +74,139 @@ private:
         }
         return block->entries[triangle % kBlock];
     }
+
+    // The entry, or null when it was never made (reads only).
+    const Entry* find(uint32_t object, uint32_t triangle) const {
+        const std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
+        if (!table) return nullptr;
+        const Block* block = table[triangle / kBlock].load(std::memory_order_acquire);
+        return block ? &block->entries[triangle % kBlock] : nullptr;
+    }
+
+private:
+    static constexpr size_t kBlock = 64;  // triangles per block of the table
+    struct Block {
+        Entry entries[kBlock];
+    };
+    size_t blockCount(size_t object) const { return (w_.objects[object].mesh->triangles.size() + kBlock - 1) / kBlock; }
+
+    const BakeWindow& w_;
+    mutable std::vector<std::atomic<std::atomic<Block*>*>> tables_;
+};
+
+// The terrain rule per receiver triangle, computed on first use and shared by every light
+// (it depends on the receiver alone; a window under a low and a high sun met each buried
+// receiver twice): whether the receiver lies wholly deeper than the tolerance under the
+// ground, and else, with `bound`, its part above the ground (partAboveGround). Safe to call
+// from several threads: an answer is computed again at worst, always the same.
+class ReceiverGround {
+public:
+    // `bound`: also compute the part above the ground (off for the exhaustive reference,
+    // which uses no double filter beyond the lowest ground under a receiver's box).
+    ReceiverGround(const BakeWindow& w, double margin, bool bound) : w_(w), margin_(margin), bound_(bound), table_(w) {}
+
+    struct Answer {
+        bool buried = false;                          // the rule excludes the receiver
+        const std::vector<glm::dvec3>* part = nullptr;  // its part above the ground; nullptr: no bound
+    };
+    // Receiver `r` is triangle (object, triangle), not itself terrain; the window has terrain.
+    Answer of(uint32_t object, uint32_t triangle, const Receiver& r) const;
+
+private:
+    static constexpr uint8_t kUnknown = 0, kBuried = 1, kAbove = 2;
+    struct Entry {
+        std::atomic<uint8_t> state{kUnknown};
+        std::atomic<const std::vector<glm::dvec3>*> part{nullptr};  // owned; set before state
+        ~Entry() { delete part.load(std::memory_order_relaxed); }
+    };
+
+    const BakeWindow& w_;
+    double margin_;
+    bool bound_;
+    TriangleTable<Entry> table_;
+};
+
+// Per receiver triangle (object, triangle) and light, computed on first use (most
+// receivers of a window are never tested; an object's table is made when a query first
+// reaches it): -1 when the receiver rules exclude it, else a lower bound of the bias
+// (metres) that applies to it; and where the terrain rule applies, the receiver's part
+// above the ground (from `ground`, shared by the lights: once per receiver, not per caster
+// triangle or light). Safe to call from several threads: a value is computed again at
+// worst, always the same.
+class ReceiverRules {
+public:
+    // `ground`: the window's terrain rule (outlives the rules).
+    ReceiverRules(const BakeWindow& w, const Light& L, const LightGeometry& lg, const ReceiverGround& ground)
+        : w_(w), L_(L), lg_(lg), ground_(ground), table_(w) {}
+    ReceiverRules(const ReceiverRules&) = delete;
+    ReceiverRules& operator=(const ReceiverRules&) = delete;
+
+    // `receiver()` makes the receiver when the value is not known yet. `above`, when given,
+    // receives the receiver's part above the ground (nullptr: the terrain rule gives no
+    // bound there; check it only when the result is >= 0).
+    template <class Make>
+    double beta(uint32_t object, uint32_t triangle, const Make& receiver, const std::vector<glm::dvec3>** above = nullptr) const {
+        Entry& e = table_.at(object, triangle);
+        double b = e.beta.load(std::memory_order_acquire);  // after the part it publishes
+        if (b == kUnknown || b == kFacesLight) {
+            // Facing, range and cone already passed: the terrain rule and the bias only.
+            b = b == kFacesLight ? computeRest(object, triangle, receiver(), e) : compute(object, triangle, receiver(), e);
+            e.beta.store(b, std::memory_order_release);
+        }
+        if (above) *above = e.part.load(std::memory_order_acquire);
+        return b;
+    }
+
+    // True when the cheap rules exclude the receiver: facing, range and cone (no terrain,
+    // no clipping). Evaluated once per receiver and kept, as beta is (which then evaluates
+    // only the rest): a rock's back faces, met by the columns of its own front faces, are
+    // dismissed before any filter is placed against them. `receiver()` as for beta.
+    template <class Make>
+    bool excludedByFacing(uint32_t object, uint32_t triangle, const Make& receiver) const {
+        Entry& e = table_.at(object, triangle);
+        double b = e.beta.load(std::memory_order_acquire);
+        if (b == kUnknown) {
+            const double first = facesAway(receiver()) ? kExcluded : kFacesLight;
+            // Unless another thread stored a value meanwhile (the same answer, or a whole one).
+            if (e.beta.compare_exchange_strong(b, first, std::memory_order_acq_rel)) b = first;
+        }
+        return b == kExcluded;
+    }
+
+    // True when an earlier question settled that the rules exclude the receiver (beta -1,
+    // or excludedByFacing true); false when they let it through or nothing was asked yet.
+    // Reads only: the broad phase asks it of every leaf triangle before its box test.
+    bool knownExcluded(uint32_t object, uint32_t triangle) const {
+        const Entry* e = table_.find(object, triangle);
+        return e && e->beta.load(std::memory_order_acquire) == kExcluded;
+    }
+
+private:
+    static constexpr double kUnknown = -2.0;  // every computed value is -1 or >= 0
+    static constexpr double kExcluded = -1.0;
+    static constexpr double kFacesLight = -3.0;  // facing, range and cone passed; the rest not evaluated
+    struct Entry {
+        std::atomic<double> beta{kUnknown};
+        std::atomic<const std::vector<glm::dvec3>*> part{nullptr};  // ReceiverGround's; set before beta
+    };
+
     // -1 when the rules exclude the receiver, else its bias; publishes the part above the
     // ground in `e` (before the caller publishes the value).
-    double compute(const Receiver& r, Entry& e) const { return facesAway(r) ? kExcluded : computeRest(r, e); }
+    double compute(uint32_t object, uint32_t triangle, const Receiver& r, Entry& e) const {
+        return facesAway(r) ? kExcluded : computeRest(object, triangle, r, e);
+    }
     // The facing, range and cone rules: true when they exclude the receiver.
     bool facesAway(const Receiver& r) const;
     // compute for a receiver the facing, range and cone rules let through: the terrain rule and the bias.
-    double computeRest(const Receiver& r, Entry& e) const;
+    double computeRest(uint32_t object, uint32_t triangle, const Receiver& r, Entry& e) const;
     // The bias, and for directional lights the slope term (constant over a triangle).
     double bias(const Receiver& r) const;
 
     const BakeWindow& w_;
     const Light& L_;
     LightGeometry lg_;
-    double margin_;
-    bool bound_;
-    mutable std::vector<std::atomic<std::atomic<Block*>*>> tables_;
+    const ReceiverGround& ground_;
+    TriangleTable<Entry> table_;
 };
 
 }  // namespace shadowcull::geometry

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <functional>
+#include <memory>
 
 #include <CGAL/FPU.h>
 #include <glm/geometric.hpp>
@@ -14,6 +15,8 @@
 #include "cli/report.h"
 #include "geometry/exact_frustum.h"
 #include "geometry/geometry_stage.h"
+#include "geometry/receiver_rules.h"
+#include "io/scene_reader.h"
 #include "tests/support/bake_lookup.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
@@ -669,3 +672,55 @@ TEST(GeometryStage, TerrainRuleIsExactOnSlopes) {
     }
 }
 
+
+// The terrain rule depends on the receiver alone: every light's receiver rules take one
+// answer per receiver triangle from the window's ReceiverGround (the same part above the
+// ground, not a copy per light), and agree with the rule computed on its own (underTerrain).
+// Fails when a light computes its own part, or when the shared answer differs from the rule.
+TEST(ReceiverGround, OneAnswerPerReceiverForEveryLight) {
+    SpaceBuilder b = rocksOnHills(0.05);
+    b.addLight(LightSpec::directional("high sun", {0.1, -1, 0.2}).withBias(0.05));
+    const fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    Expected<Space> space = loadSpace((dir / "space").string(), "");
+    ASSERT_TRUE(space) << space.error().what();
+    TerrainMeshes terrains;
+    const BakeWindow w = buildWindow(*space, ChunkCoord{0, 0}, terrains);
+    ASSERT_TRUE(w.hasTerrain);
+    ASSERT_EQ(w.lsLights.size(), 2u);
+    const double margin = 1e-9;
+    const geometry::ReceiverGround ground(w, margin, true);
+    std::vector<LightGeometry> lg;
+    std::vector<std::unique_ptr<geometry::ReceiverRules>> rules;
+    for (const Light& L : w.lsLights) lg.push_back(LightGeometry{true, L.direction, L.position});
+    for (size_t l = 0; l < 2; ++l) rules.push_back(std::make_unique<geometry::ReceiverRules>(w, w.lsLights[l], lg[l], ground));
+    size_t buried = 0, withPart = 0, shared = 0;
+    for (uint32_t k = 0; k < w.objects.size(); ++k) {
+        const WindowObject& o = w.objects[k];
+        if (o.kind == ChunkObject::Kind::Terrain) continue;
+        for (uint32_t t = 0; t < o.mesh->triangles.size(); ++t) {
+            geometry::Receiver r;
+            r.tri = o.lsTriangle(t);
+            r.box = geometry::triangleBox(r.tri);
+            r.twoSided = true;  // facing aside: every triangle reaches the terrain rule
+            const geometry::ReceiverGround::Answer a = ground.of(k, t, r);
+            if (geometry::underTerrain(w, {r.box.min, r.box.max}, margin)) EXPECT_TRUE(a.buried);
+            buried += a.buried;
+            withPart += a.part != nullptr;
+            const std::vector<glm::dvec3>* above[2] = {nullptr, nullptr};
+            for (size_t l = 0; l < 2; ++l) {
+                const double beta = rules[l]->beta(k, t, [&]() -> const geometry::Receiver& { return r; }, &above[l]);
+                EXPECT_EQ(beta < 0, a.buried) << "object " << k << " triangle " << t << " light " << l;
+            }
+            if (!a.buried) {
+                EXPECT_EQ(above[0], a.part);
+                EXPECT_EQ(above[1], a.part);
+                shared += a.part != nullptr;
+            }
+        }
+    }
+    // Both answers occur: half-buried rocks have buried triangles and triangles above ground.
+    EXPECT_GT(buried, 0u);
+    EXPECT_GT(withPart, 0u);
+    EXPECT_EQ(shared, withPart);
+}
