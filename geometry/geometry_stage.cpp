@@ -112,14 +112,14 @@ std::vector<Task> gatherTasks(const ChunkVerdicts& cv, bool crossCheck, std::vec
 struct WindowScene {
     WindowScene(const BakeWindow& w, const GeometryOptions& o, const std::vector<bool>& lightNeeded)
         : window(w), options(o), margin(windowMargin(w)), limits(grown(w.lsBounds, 1.0)), objectBoxes(receiverBoxes()),
-          objectTree(objectBoxes), lights(testedLights(w)), ground(w, margin, !o.exhaustive) {
+          objectTree(objectBoxes), lights(testedLights(w)), ground(w, margin, !o.exhaustive, arena) {
         const size_t count = lightNeeded.size();
         lightGeom.resize(count);
         rules.resize(count);
         for (size_t l = 0; l < count; ++l) {
             const Light& L = lights[l];
             lightGeom[l] = LightGeometry{L.type == LightType::Directional, L.direction, L.position};
-            if (lightNeeded[l]) rules[l] = std::make_unique<ReceiverRules>(w, L, lightGeom[l], ground);
+            if (lightNeeded[l]) rules[l] = std::make_unique<ReceiverRules>(w, L, lightGeom[l], ground, arena);
         }
     }
 
@@ -142,6 +142,7 @@ struct WindowScene {
     std::vector<Aabb> objectBoxes;
     ObjectTree objectTree;
     std::vector<Light> lights;  // dilated by the normal bias (testedLights)
+    ThreadArena arena;          // the receiver tables and parts below, freed with the window at once
     ReceiverGround ground;      // the terrain rule per receiver, for every light's rules
     std::vector<LightGeometry> lightGeom;
     std::vector<std::unique_ptr<ReceiverRules>> rules;  // for the lights some task needs
@@ -284,7 +285,7 @@ public:
     // unless the rules exclude it, and its bias, or -1 when the rules exclude it. `above`:
     // as ReceiverRules::beta.
     double receiver(uint32_t k, uint32_t tri, std::optional<Receiver>& made,
-                    const std::vector<glm::dvec3>** above = nullptr) const {
+                    const GroundPart** above = nullptr) const {
         // (`made` may hold it already: the caller's placed receiver.)
         const double beta = rules_.beta(
             k, tri, [&]() -> const Receiver& { return made ? *made : *(made = scene_.makeReceiver(k, tri)); }, above);
@@ -419,7 +420,7 @@ private:
             // terrain triangle, most of them outside the column).
             if (filtersMiss(made ? made->tri : scene_.window.objects[k].lsTriangle(tri), leastBias())) return false;
         }
-        const std::vector<glm::dvec3>* above = nullptr;  // its part above the ground
+        const GroundPart* above = nullptr;  // its part above the ground
         const double beta = search_.receiver(k, tri, made, &above);
         if (beta < 0) return false;
         const Receiver& r = *made;

@@ -112,13 +112,19 @@ ReceiverGround::Answer ReceiverGround::of(uint32_t object, uint32_t triangle, co
         if (underTerrain(w_, {r.box.min, r.box.max}, margin_)) {
             state = kBuried;
         } else if (bound_) {
-            auto part = std::make_unique<std::vector<glm::dvec3>>();
-            if (partAboveGround(w_, r.tri, r.box, margin_, *part)) {
-                if (part->empty()) {
+            thread_local std::vector<glm::dvec3> part;  // scratch: copied into the arena when kept
+            if (partAboveGround(w_, r.tri, r.box, margin_, part)) {
+                if (part.empty()) {
                     state = kBuried;
                 } else {
-                    const std::vector<glm::dvec3>* expected = nullptr;
-                    if (e.part.compare_exchange_strong(expected, part.get(), std::memory_order_acq_rel)) part.release();
+                    glm::dvec3* points = static_cast<glm::dvec3*>(arena_.allocate(part.size() * sizeof(glm::dvec3), alignof(glm::dvec3)));
+                    std::copy(part.begin(), part.end(), points);
+                    GroundPart* made = arena_.make<GroundPart>();
+                    made->points = points;
+                    made->count = part.size();
+                    // Else another thread's (the same) part won; ours stays unused in the arena.
+                    const GroundPart* expected = nullptr;
+                    e.part.compare_exchange_strong(expected, made, std::memory_order_acq_rel);
                 }
             }
         }

@@ -12,6 +12,7 @@
 
 #include "core/window.h"
 #include "geometry/exact_frustum.h"
+#include "util/thread_arena.h"
 
 namespace shadowcull::geometry {
 
@@ -33,24 +34,16 @@ inline Aabb triangleBox(const Triangle& t) {
 // (conservative: the box's top against the lowest terrain sample around it).
 bool underTerrain(const BakeWindow& w, const std::array<glm::dvec3, 2>& box, double margin);
 
-// Entries per receiver triangle (object, triangle) of a window, each made on first touch.
-// Two levels, each made on first touch: a dense mesh's queries touch a few of its 100k+
-// triangles, and a table of them all, made and cleared per object, window and light,
-// would cost more than the queries. Safe to use from several threads; `Entry` holds
-// atomics and frees what it owns in its destructor.
+// Entries per receiver triangle (object, triangle) of a window, each made on first touch,
+// in the window's arena (freed with it, at once). Two levels: a dense mesh's queries touch
+// a few of its 100k+ triangles, and a table of them all, made per object, window and
+// light, would cost more than the queries. Safe to use from several threads. `Entry`:
+// trivially destructible, its initial state from its default member initialisers.
 template <class Entry>
 class TriangleTable {
 public:
-    explicit TriangleTable(const BakeWindow& w) : w_(w), tables_(w.objects.size()) {
+    TriangleTable(const BakeWindow& w, ThreadArena& arena) : w_(w), arena_(arena), tables_(w.objects.size()) {
         for (auto& t : tables_) t.store(nullptr, std::memory_order_relaxed);
-    }
-    ~TriangleTable() {
-        for (size_t k = 0; k < tables_.size(); ++k) {
-            std::atomic<Block*>* table = tables_[k].load(std::memory_order_relaxed);
-            if (!table) continue;
-            for (size_t b = 0; b < blockCount(k); ++b) delete table[b].load(std::memory_order_relaxed);
-            delete[] table;
-        }
     }
     TriangleTable(const TriangleTable&) = delete;
     TriangleTable& operator=(const TriangleTable&) = delete;
@@ -59,18 +52,15 @@ public:
     Entry& at(uint32_t object, uint32_t triangle) const {
         std::atomic<Block*>* table = tables_[object].load(std::memory_order_acquire);
         if (!table) {
-            const size_t n = blockCount(object);
-            auto* fresh = new std::atomic<Block*>[n];
-            for (size_t i = 0; i < n; ++i) fresh[i].store(nullptr, std::memory_order_relaxed);
+            auto* fresh = arena_.make<std::atomic<Block*>>(blockCount(object));
+            // Else another thread's table won (`table` now holds it); ours stays unused in the arena.
             if (tables_[object].compare_exchange_strong(table, fresh, std::memory_order_acq_rel)) table = fresh;
-            else delete[] fresh;  // another thread's table won; `table` now holds it
         }
         std::atomic<Block*>& slot = table[triangle / kBlock];
         Block* block = slot.load(std::memory_order_acquire);
         if (!block) {
-            auto* fresh = new Block;
+            auto* fresh = arena_.make<Block>();
             if (slot.compare_exchange_strong(block, fresh, std::memory_order_acq_rel)) block = fresh;
-            else delete fresh;
         }
         return block->entries[triangle % kBlock];
     }
@@ -91,7 +81,17 @@ private:
     size_t blockCount(size_t object) const { return (w_.objects[object].mesh->triangles.size() + kBlock - 1) / kBlock; }
 
     const BakeWindow& w_;
+    ThreadArena& arena_;
     mutable std::vector<std::atomic<std::atomic<Block*>*>> tables_;
+};
+
+// A receiver's part above the ground (partAboveGround): points whose convex hull holds
+// every point of the receiver the terrain rule lets receive. In the window's arena.
+struct GroundPart {
+    const glm::dvec3* points = nullptr;
+    size_t count = 0;
+    const glm::dvec3* data() const { return points; }
+    size_t size() const { return count; }
 };
 
 // The terrain rule per receiver triangle, computed on first use and shared by every light
@@ -103,11 +103,13 @@ class ReceiverGround {
 public:
     // `bound`: also compute the part above the ground (off for the exhaustive reference,
     // which uses no double filter beyond the lowest ground under a receiver's box).
-    ReceiverGround(const BakeWindow& w, double margin, bool bound) : w_(w), margin_(margin), bound_(bound), table_(w) {}
+    // Parts and tables live in `arena` (outlives the answers).
+    ReceiverGround(const BakeWindow& w, double margin, bool bound, ThreadArena& arena)
+        : w_(w), margin_(margin), bound_(bound), arena_(arena), table_(w, arena) {}
 
     struct Answer {
-        bool buried = false;                          // the rule excludes the receiver
-        const std::vector<glm::dvec3>* part = nullptr;  // its part above the ground; nullptr: no bound
+        bool buried = false;              // the rule excludes the receiver
+        const GroundPart* part = nullptr;  // its part above the ground; nullptr: no bound
     };
     // Receiver `r` is triangle (object, triangle), not itself terrain; the window has terrain.
     Answer of(uint32_t object, uint32_t triangle, const Receiver& r) const;
@@ -116,13 +118,13 @@ private:
     static constexpr uint8_t kUnknown = 0, kBuried = 1, kAbove = 2;
     struct Entry {
         std::atomic<uint8_t> state{kUnknown};
-        std::atomic<const std::vector<glm::dvec3>*> part{nullptr};  // owned; set before state
-        ~Entry() { delete part.load(std::memory_order_relaxed); }
+        std::atomic<const GroundPart*> part{nullptr};  // in the arena; set before state
     };
 
     const BakeWindow& w_;
     double margin_;
     bool bound_;
+    ThreadArena& arena_;
     TriangleTable<Entry> table_;
 };
 
@@ -135,9 +137,10 @@ private:
 // worst, always the same.
 class ReceiverRules {
 public:
-    // `ground`: the window's terrain rule (outlives the rules).
-    ReceiverRules(const BakeWindow& w, const Light& L, const LightGeometry& lg, const ReceiverGround& ground)
-        : w_(w), L_(L), lg_(lg), ground_(ground), table_(w) {}
+    // `ground`: the window's terrain rule; `arena`: where the tables live (both outlive the rules).
+    ReceiverRules(const BakeWindow& w, const Light& L, const LightGeometry& lg, const ReceiverGround& ground,
+                  ThreadArena& arena)
+        : w_(w), L_(L), lg_(lg), ground_(ground), table_(w, arena) {}
     ReceiverRules(const ReceiverRules&) = delete;
     ReceiverRules& operator=(const ReceiverRules&) = delete;
 
@@ -145,7 +148,7 @@ public:
     // receives the receiver's part above the ground (nullptr: the terrain rule gives no
     // bound there; check it only when the result is >= 0).
     template <class Make>
-    double beta(uint32_t object, uint32_t triangle, const Make& receiver, const std::vector<glm::dvec3>** above = nullptr) const {
+    double beta(uint32_t object, uint32_t triangle, const Make& receiver, const GroundPart** above = nullptr) const {
         Entry& e = table_.at(object, triangle);
         double b = e.beta.load(std::memory_order_acquire);  // after the part it publishes
         if (b == kUnknown || b == kFacesLight) {
@@ -187,7 +190,7 @@ private:
     static constexpr double kFacesLight = -3.0;  // facing, range and cone passed; the rest not evaluated
     struct Entry {
         std::atomic<double> beta{kUnknown};
-        std::atomic<const std::vector<glm::dvec3>*> part{nullptr};  // ReceiverGround's; set before beta
+        std::atomic<const GroundPart*> part{nullptr};  // ReceiverGround's; set before beta
     };
 
     // -1 when the rules exclude the receiver, else its bias; publishes the part above the

@@ -689,11 +689,12 @@ TEST(ReceiverGround, OneAnswerPerReceiverForEveryLight) {
     ASSERT_TRUE(w.hasTerrain);
     ASSERT_EQ(w.lsLights.size(), 2u);
     const double margin = 1e-9;
-    const geometry::ReceiverGround ground(w, margin, true);
+    ThreadArena arena;
+    const geometry::ReceiverGround ground(w, margin, true, arena);
     std::vector<LightGeometry> lg;
     std::vector<std::unique_ptr<geometry::ReceiverRules>> rules;
     for (const Light& L : w.lsLights) lg.push_back(LightGeometry{true, L.direction, L.position});
-    for (size_t l = 0; l < 2; ++l) rules.push_back(std::make_unique<geometry::ReceiverRules>(w, w.lsLights[l], lg[l], ground));
+    for (size_t l = 0; l < 2; ++l) rules.push_back(std::make_unique<geometry::ReceiverRules>(w, w.lsLights[l], lg[l], ground, arena));
     size_t buried = 0, withPart = 0, shared = 0;
     for (uint32_t k = 0; k < w.objects.size(); ++k) {
         const WindowObject& o = w.objects[k];
@@ -707,7 +708,7 @@ TEST(ReceiverGround, OneAnswerPerReceiverForEveryLight) {
             if (geometry::underTerrain(w, {r.box.min, r.box.max}, margin)) EXPECT_TRUE(a.buried);
             buried += a.buried;
             withPart += a.part != nullptr;
-            const std::vector<glm::dvec3>* above[2] = {nullptr, nullptr};
+            const geometry::GroundPart* above[2] = {nullptr, nullptr};
             for (size_t l = 0; l < 2; ++l) {
                 const double beta = rules[l]->beta(k, t, [&]() -> const geometry::Receiver& { return r; }, &above[l]);
                 EXPECT_EQ(beta < 0, a.buried) << "object " << k << " triangle " << t << " light " << l;
