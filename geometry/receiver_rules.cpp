@@ -117,7 +117,8 @@ ReceiverGround::Answer ReceiverGround::of(uint32_t object, uint32_t triangle, co
                 if (part.empty()) {
                     state = kBuried;
                 } else {
-                    glm::dvec3* points = static_cast<glm::dvec3*>(arena_.allocate(part.size() * sizeof(glm::dvec3), alignof(glm::dvec3)));
+                    auto* points = static_cast<glm::dvec3*>(
+                        arena_.allocate(part.size() * sizeof(glm::dvec3), alignof(glm::dvec3)));
                     std::copy(part.begin(), part.end(), points);
                     GroundPart* made = arena_.make<GroundPart>();
                     made->points = points;

@@ -153,7 +153,8 @@ public:
         double b = e.beta.load(std::memory_order_acquire);  // after the part it publishes
         if (b == kUnknown || b == kFacesLight) {
             // Facing, range and cone already passed: the terrain rule and the bias only.
-            b = b == kFacesLight ? computeRest(object, triangle, receiver(), e) : compute(object, triangle, receiver(), e);
+            b = b == kFacesLight ? computeRest(object, triangle, receiver(), e)
+                                 : compute(object, triangle, receiver(), e);
             e.beta.store(b, std::memory_order_release);
         }
         if (above) *above = e.part.load(std::memory_order_acquire);

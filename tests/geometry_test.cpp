@@ -705,7 +705,9 @@ TEST(ReceiverGround, OneAnswerPerReceiverForEveryLight) {
             r.box = geometry::triangleBox(r.tri);
             r.twoSided = true;  // facing aside: every triangle reaches the terrain rule
             const geometry::ReceiverGround::Answer a = ground.of(k, t, r);
-            if (geometry::underTerrain(w, {r.box.min, r.box.max}, margin)) EXPECT_TRUE(a.buried);
+            if (geometry::underTerrain(w, {r.box.min, r.box.max}, margin)) {
+                EXPECT_TRUE(a.buried);
+            }
             buried += a.buried;
             withPart += a.part != nullptr;
             const geometry::GroundPart* above[2] = {nullptr, nullptr};

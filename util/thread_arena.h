@@ -31,7 +31,8 @@ public:
         size_t pad = (align - reinterpret_cast<uintptr_t>(local.next) % align) % align;
         if (!local.next || pad + bytes > local.left) {
             const size_t size = std::max(chunkBytes_, bytes);
-            local.chunks.emplace_back(new std::max_align_t[(size + sizeof(std::max_align_t) - 1) / sizeof(std::max_align_t)]);
+            const size_t units = (size + sizeof(std::max_align_t) - 1) / sizeof(std::max_align_t);
+            local.chunks.emplace_back(new std::max_align_t[units]);
             local.next = reinterpret_cast<std::byte*>(local.chunks.back().get());
             local.left = size;
             pad = 0;
