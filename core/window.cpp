@@ -109,11 +109,15 @@ std::optional<double> BakeWindow::lsTerrainMaxOver(double x0, double z0, double 
     return terrainExtremeOver(*this, x0, z0, x1, z1, true);
 }
 
-bool BakeWindow::lsGroundOver(double x0, double z0, double x1, double z1, std::vector<std::array<glm::dvec3, 3>>& out,
-                              std::vector<GroundOpening>* openings) const {
+namespace {
+
+// The terrain triangles of lsGroundOver's rectangle, of every terrain there (see window.h),
+// leaving out with `keep` cells whose triangles lie wholly outside its x-z extent.
+bool groundOver(const BakeWindow& w, double x0, double z0, double x1, double z1, const Aabb* keep,
+                std::vector<std::array<glm::dvec3, 3>>& out, std::vector<GroundOpening>* openings) {
     // A part spanning more than a few chunks: not worth it (the caller keeps the receiver).
     return forTerrainsOver(
-        *this, x0, z0, x1, z1, 4,
+        w, x0, z0, x1, z1, 4,
         [&](const WindowObject& o) {
             const Heightfield& hf = *o.heightfield;
             const int cells = hf.n - 1;
@@ -124,12 +128,33 @@ bool BakeWindow::lsGroundOver(double x0, double z0, double x1, double z1, std::v
             };
             const int i0 = index(x0, o.lsTerrainOrigin.x, -1), i1 = index(x1, o.lsTerrainOrigin.x, 1);
             const int j0 = index(z0, o.lsTerrainOrigin.z, -1), j1 = index(z1, o.lsTerrainOrigin.z, 1);
-            for (int j = j0; j <= j1; ++j)
-                for (int i = i0; i <= i1; ++i)
+            // With `keep`, where the placement only moves the mesh (a terrain's: rows 0-2 the
+            // identity), the placed x of column i's vertices is the same in every row (the
+            // other terms are zeros) and increases with i; likewise z by row. A cell lying
+            // wholly beside `keep` holds two triangles whose boxes do too.
+            const RowTransform& t = o.lsTransform;
+            const bool moved = keep && t.rows[0] == glm::dvec3(1, 0, 0) && t.rows[1] == glm::dvec3(0, 1, 0) &&
+                               t.rows[2] == glm::dvec3(0, 0, 1);
+            thread_local std::vector<double> columnX, rowZ;  // placed x of columns i0 .. i1 + 1, z of rows
+            if (moved) {
+                auto placed = [&](int i, int j) {
+                    return t.apply(o.mesh->positions[size_t(j) * size_t(hf.n) + size_t(i)]);
+                };
+                columnX.clear(), rowZ.clear();
+                for (int i = i0; i <= i1 + 1; ++i) columnX.push_back(placed(i, j0).x);
+                for (int j = j0; j <= j1 + 1; ++j) rowZ.push_back(placed(i0, j).z);
+            }
+            for (int j = j0; j <= j1; ++j) {
+                if (moved && (rowZ[size_t(j + 1 - j0)] < keep->min.z || rowZ[size_t(j - j0)] > keep->max.z)) continue;
+                for (int i = i0; i <= i1; ++i) {
+                    if (moved && (columnX[size_t(i + 1 - i0)] < keep->min.x || columnX[size_t(i - i0)] > keep->max.x))
+                        continue;
                     for (int half = 0; half < 2; ++half) {
                         // Heightfield::toMesh: cell (i, j) holds triangles 2 (j cells + i) and the next.
                         out.push_back(o.lsTriangle(2 * (size_t(j) * size_t(cells) + size_t(i)) + size_t(half)));
                     }
+                }
+            }
         },
         [&](const GroundOpening& g) {
             if (!openings) return false;
@@ -138,9 +163,21 @@ bool BakeWindow::lsGroundOver(double x0, double z0, double x1, double z1, std::v
         });
 }
 
+}  // namespace
+
+bool BakeWindow::lsGroundOver(double x0, double z0, double x1, double z1, std::vector<std::array<glm::dvec3, 3>>& out,
+                              std::vector<GroundOpening>* openings) const {
+    return groundOver(*this, x0, z0, x1, z1, nullptr, out, openings);
+}
+
 bool BakeWindow::lsTerrainTrianglesOver(double x0, double z0, double x1, double z1,
                                         std::vector<std::array<glm::dvec3, 3>>& out) const {
-    return lsGroundOver(x0, z0, x1, z1, out, nullptr);
+    return groundOver(*this, x0, z0, x1, z1, nullptr, out, nullptr);
+}
+
+bool BakeWindow::lsTerrainTrianglesOver(double x0, double z0, double x1, double z1, const Aabb& keep,
+                                        std::vector<std::array<glm::dvec3, 3>>& out) const {
+    return groundOver(*this, x0, z0, x1, z1, &keep, out, nullptr);
 }
 
 Aabb lsGroupBoundsByLoop(const WindowObject& o, uint32_t group, bool withArea) {

@@ -153,6 +153,12 @@ struct BakeWindow {
     // incomplete and must not be used).
     bool lsTerrainTrianglesOver(double x0, double z0, double x1, double z1,
                                 std::vector<std::array<glm::dvec3, 3>>& out) const;
+    // The same, leaving out only triangles whose box lies wholly beside the x-z extent of
+    // `keep` (y ignored; a cell at a time, where the terrain is placed by a translation):
+    // what a caller skipping those by their boxes keeps, in the same order, at the cost of
+    // the cells it keeps.
+    bool lsTerrainTrianglesOver(double x0, double z0, double x1, double z1, const Aabb& keep,
+                                std::vector<std::array<glm::dvec3, 3>>& out) const;
     // As lsTerrainTrianglesOver, but a chunk square the rectangle meets that has no
     // terrain loaded (the world's edge, a chunk without terrain) is appended to
     // `openings` instead of failing: no terrain rule holds over it. False only when the

@@ -53,7 +53,9 @@ bool partAboveGround(const BakeWindow& w, const Triangle& t, const Aabb& box, do
     thread_local std::vector<Triangle> ground;  // scratch, as the polygon
     thread_local std::vector<glm::dvec3> poly;
     ground.clear();
-    if (!w.lsTerrainTrianglesOver(box.min.x, box.min.z, box.max.x, box.max.z, ground)) return false;
+    // Ground triangles beside the box (grown by the margin) are skipped below: not made.
+    const Aabb near{box.min - glm::dvec3(margin), box.max + glm::dvec3(margin)};
+    if (!w.lsTerrainTrianglesOver(box.min.x, box.min.z, box.max.x, box.max.z, near, ground)) return false;
     for (const Triangle& g : ground) {
         const Aabb gb = triangleBox(g);
         if (gb.max.x < box.min.x - margin || gb.min.x > box.max.x + margin || gb.max.z < box.min.z - margin ||

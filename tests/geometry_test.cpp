@@ -673,6 +673,29 @@ TEST(GeometryStage, TerrainRuleIsExactOnSlopes) {
 }
 
 
+namespace {
+
+// A space written from `b` and loaded, and chunk (0, 0)'s window over it (heap-held: the
+// window points into the space and the terrain meshes).
+struct LoadedWindow {
+    Space space;
+    TerrainMeshes terrains;
+    BakeWindow w;
+};
+std::unique_ptr<LoadedWindow> loadWindow(const SpaceBuilder& b) {
+    const fs::path dir = freshTestDir();
+    b.write((dir / "space").string());
+    Expected<Space> space = loadSpace((dir / "space").string(), "");
+    EXPECT_TRUE(space) << (space ? "" : space.error().what());
+    if (!space) return nullptr;
+    auto l = std::make_unique<LoadedWindow>();
+    l->space = std::move(*space);
+    l->w = buildWindow(l->space, ChunkCoord{0, 0}, l->terrains);
+    return l;
+}
+
+}  // namespace
+
 // The terrain rule depends on the receiver alone: every light's receiver rules take one
 // answer per receiver triangle from the window's ReceiverGround (the same part above the
 // ground, not a copy per light), and agree with the rule computed on its own (underTerrain).
@@ -680,12 +703,9 @@ TEST(GeometryStage, TerrainRuleIsExactOnSlopes) {
 TEST(ReceiverGround, OneAnswerPerReceiverForEveryLight) {
     SpaceBuilder b = rocksOnHills(0.05);
     b.addLight(LightSpec::directional("high sun", {0.1, -1, 0.2}).withBias(0.05));
-    const fs::path dir = freshTestDir();
-    b.write((dir / "space").string());
-    Expected<Space> space = loadSpace((dir / "space").string(), "");
-    ASSERT_TRUE(space) << space.error().what();
-    TerrainMeshes terrains;
-    const BakeWindow w = buildWindow(*space, ChunkCoord{0, 0}, terrains);
+    const std::unique_ptr<LoadedWindow> loaded = loadWindow(b);
+    ASSERT_TRUE(loaded);
+    const BakeWindow& w = loaded->w;
     ASSERT_TRUE(w.hasTerrain);
     ASSERT_EQ(w.lsLights.size(), 2u);
     const double margin = 1e-9;
@@ -726,4 +746,46 @@ TEST(ReceiverGround, OneAnswerPerReceiverForEveryLight) {
     EXPECT_GT(buried, 0u);
     EXPECT_GT(withPart, 0u);
     EXPECT_EQ(shared, withPart);
+}
+
+// BakeWindow::lsTerrainTrianglesOver with `keep` leaves out whole cells beside its x-z
+// extent: the triangles it gives are those of the full list whose boxes are not wholly
+// beside `keep`, plus at most others of kept cells, in the full list's order. Fails when a
+// cell is dropped that holds a triangle reaching `keep` (a column or row off by one).
+TEST(BakeWindow, TerrainTrianglesNearAKeepBoxAreTheFullListsInOrder) {
+    const std::unique_ptr<LoadedWindow> loaded = loadWindow(rocksOnHills(0.05));
+    ASSERT_TRUE(loaded);
+    const BakeWindow& w = loaded->w;
+    ASSERT_TRUE(w.hasTerrain);
+    size_t kept = 0, dropped = 0;
+    for (int k = 0; k < 200; ++k) {
+        // Boxes from a few centimetres to tens of metres, some on cell lines (4 m cells).
+        const double x = 1.0 + 0.37 * k, z = 2.0 + 0.29 * k, size = k % 3 == 0 ? 0.04 : 0.5 + 0.2 * (k % 50);
+        const double snap = k % 5 == 0 ? 4.0 * std::floor(x / 4.0) : x;
+        const Aabb box{glm::dvec3(snap, -10, z), glm::dvec3(snap + size, 10, z + size)};
+        const double margin = 1e-9;
+        const Aabb keep{box.min - glm::dvec3(margin), box.max + glm::dvec3(margin)};
+        std::vector<std::array<glm::dvec3, 3>> all, near;
+        const bool okAll = w.lsTerrainTrianglesOver(box.min.x, box.min.z, box.max.x, box.max.z, all);
+        const bool okNear = w.lsTerrainTrianglesOver(box.min.x, box.min.z, box.max.x, box.max.z, keep, near);
+        ASSERT_EQ(okAll, okNear);
+        if (!okAll) continue;
+        auto beside = [&](const std::array<glm::dvec3, 3>& t) {
+            const Aabb tb = geometry::triangleBox(t);
+            return tb.max.x < keep.min.x || tb.min.x > keep.max.x || tb.max.z < keep.min.z || tb.min.z > keep.max.z;
+        };
+        // `near` is a subsequence of `all` holding every triangle of `all` not beside `keep`.
+        size_t n = 0;
+        for (const auto& t : all) {
+            const bool here = n < near.size() && near[n] == t;
+            if (!beside(t)) {
+                ASSERT_TRUE(here) << "box " << k << ": a triangle reaching the box was left out";
+            }
+            if (here) ++n, ++kept;
+            else ++dropped;
+        }
+        ASSERT_EQ(n, near.size()) << "box " << k << ": triangles out of order or not in the full list";
+    }
+    EXPECT_GT(kept, 0u);
+    EXPECT_GT(dropped, 0u);  // the cells around the box are left out
 }
