@@ -16,8 +16,8 @@
 #include "geometry/exact_frustum.h"
 #include "geometry/geometry_stage.h"
 #include "geometry/receiver_rules.h"
-#include "io/scene_reader.h"
 #include "tests/support/bake_lookup.h"
+#include "tests/support/loaded_window.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 
@@ -673,29 +673,6 @@ TEST(GeometryStage, TerrainRuleIsExactOnSlopes) {
 }
 
 
-namespace {
-
-// A space written from `b` and loaded, and chunk (0, 0)'s window over it (heap-held: the
-// window points into the space and the terrain meshes).
-struct LoadedWindow {
-    Space space;
-    TerrainMeshes terrains;
-    BakeWindow w;
-};
-std::unique_ptr<LoadedWindow> loadWindow(const SpaceBuilder& b) {
-    const fs::path dir = freshTestDir();
-    b.write((dir / "space").string());
-    Expected<Space> space = loadSpace((dir / "space").string(), "");
-    EXPECT_TRUE(space) << (space ? "" : space.error().what());
-    if (!space) return nullptr;
-    auto l = std::make_unique<LoadedWindow>();
-    l->space = std::move(*space);
-    l->w = buildWindow(l->space, ChunkCoord{0, 0}, l->terrains);
-    return l;
-}
-
-}  // namespace
-
 // The terrain rule depends on the receiver alone: every light's receiver rules take one
 // answer per receiver triangle from the window's ReceiverGround (the same part above the
 // ground, not a copy per light), and agree with the rule computed on its own (underTerrain).
@@ -703,9 +680,9 @@ std::unique_ptr<LoadedWindow> loadWindow(const SpaceBuilder& b) {
 TEST(ReceiverGround, OneAnswerPerReceiverForEveryLight) {
     SpaceBuilder b = rocksOnHills(0.05);
     b.addLight(LightSpec::directional("high sun", {0.1, -1, 0.2}).withBias(0.05));
-    const std::unique_ptr<LoadedWindow> loaded = loadWindow(b);
+    const std::unique_ptr<Loaded> loaded = load(b);
     ASSERT_TRUE(loaded);
-    const BakeWindow& w = loaded->w;
+    const BakeWindow& w = loaded->window;
     ASSERT_TRUE(w.hasTerrain);
     ASSERT_EQ(w.lsLights.size(), 2u);
     const double margin = 1e-9;
@@ -753,9 +730,9 @@ TEST(ReceiverGround, OneAnswerPerReceiverForEveryLight) {
 // beside `keep`, plus at most others of kept cells, in the full list's order. Fails when a
 // cell is dropped that holds a triangle reaching `keep` (a column or row off by one).
 TEST(BakeWindow, TerrainTrianglesNearAKeepBoxAreTheFullListsInOrder) {
-    const std::unique_ptr<LoadedWindow> loaded = loadWindow(rocksOnHills(0.05));
+    const std::unique_ptr<Loaded> loaded = load(rocksOnHills(0.05));
     ASSERT_TRUE(loaded);
-    const BakeWindow& w = loaded->w;
+    const BakeWindow& w = loaded->window;
     ASSERT_TRUE(w.hasTerrain);
     size_t kept = 0, dropped = 0;
     for (int k = 0; k < 200; ++k) {
