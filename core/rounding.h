@@ -76,6 +76,17 @@ inline Bounded operator*(const Bounded& x, const Bounded& y) {
                    rounding_detail::kGrow};
 }
 
+// How far along a line a float ray tracer's hit may lie from the line's exact crossing
+// with the hit triangle's plane. The hit point lies within `offPlane` of that plane,
+// measured along its normal (float copies of the triangle and of the line, each within a
+// known distance of the exact ones); a point that far off the plane lies offPlane / |cos|
+// from the crossing along a line at angle theta to the normal (cosAbs = |cos theta|). On a
+// triangle seen nearly edge-on the float distance is that much worse than its position
+// (1 mm off the plane is 1.4 m along a line at cos 7e-4). Infinite at cos 0: no bound.
+inline double alongLineFromPlane(double offPlane, double cosAbs) {
+    return cosAbs > 0 ? offPlane / cosAbs : HUGE_VAL;
+}
+
 // +1 or -1 when the exact value certainly has that sign, 0 when rounding may decide.
 inline int certainSign(const Bounded& b) { return b.value > b.error ? 1 : b.value < -b.error ? -1 : 0; }
 // The same with `extra` (>= 0) added to the bound: for inputs known only up to a slack the

@@ -16,7 +16,8 @@
 // be missed, a false keep; docs/semantics.md): depths are recomputed in double
 // on the hit triangles (Tracer::depthOf) and compared with double rounding's margin, so
 // that witnesses a fraction of a millimetre deep count; where that is ill-conditioned,
-// Embree's float depths with a margin of 1e-6 of the window's size.
+// Embree's float depths with a margin of 1e-6 of the window's size over the cosine between
+// the line and the hit triangle's normal (hit_depth.h).
 // Before that test, targets go 16 at a time through an occlusion packet on the window's
 // opaque-only scene, each ray ending short of the object's bounds: a target whose line is
 // blocked there cannot have p on the group, so it is skipped (a pre-filter; it removes
@@ -40,6 +41,7 @@
 
 #include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
+#include "raycast/hit_depth.h"
 #include "raycast/receiver_targets.h"
 #include "util/float_mode.h"
 #include "util/stop_request.h"
@@ -137,35 +139,11 @@ struct Tracer {
         return o.flipsWinding ? -n : n;
     }
 
-    // A hit's distance along the line (origin, unit dir) and the margin a comparison of
-    // it needs. Embree intersects float copies of the triangles along the float-rounded
-    // line, within ~eps of the true distance; recomputed here in double against the hit
-    // triangle's window-local vertices, the error is double rounding's, far below
-    // exactEps. That is what lets a witness through the thin places (the terrain's
-    // shadow on the 1 cm band of a half-buried rock is a fraction of a millimetre deep,
-    // less than eps). Kept as Embree's value with eps, the wide margin, when the line
-    // meets the plane within 1e-3 of edge-on (the double value is ill-conditioned there)
-    // or outside the triangle in double (the float hit was on the rounded copy only).
-    struct Depth {
-        double t;
-        double margin;
-    };
-    // `tri`: the hit triangle placed in the window (WindowObject::lsTriangle).
+    // A hit's distance along the line (origin, unit dir) and the margin a comparison of it
+    // needs (hit_depth.h). `tri`: the hit triangle placed in the window (WindowObject::lsTriangle).
+    using Depth = HitDepth;
     Depth depthOf(const glm::dvec3& origin, const glm::dvec3& dir, const Hit& h, const std::array<glm::dvec3, 3>& tri) const {
-        const Depth coarse{double(h.t), eps};
-        const auto& [a, b, c] = tri;
-        const glm::dvec3 e1 = b - a, e2 = c - a;
-        const glm::dvec3 pv = glm::cross(dir, e2);
-        const double det = glm::dot(e1, pv);  // -dir . (e1 x e2)
-        if (!(std::abs(det) > 1e-3 * glm::length(glm::cross(e1, e2)))) return coarse;
-        const glm::dvec3 tv = origin - a;
-        const double u = glm::dot(tv, pv) / det;
-        const glm::dvec3 qv = glm::cross(tv, e1);
-        const double v = glm::dot(dir, qv) / det;
-        if (!(u >= 0 && v >= 0 && u + v <= 1)) return coarse;
-        const double t = glm::dot(e2, qv) / det;
-        if (!(std::abs(t - coarse.t) <= eps)) return coarse;
-        return {t, exactEps};
+        return hitDepth(origin, dir, h.t, tri, eps, exactEps);
     }
 
     const PrimitiveGroup& groupOf(const Hit& h) const {
@@ -173,11 +151,13 @@ struct Tracer {
         return o.mesh->groups[o.mesh->triangleGroup[h.prim]];
     }
 
-    bool withinReach(const Light& L, const glm::dvec3& x) const {
+    // `alongLine`: how far x may lie from the true point along its line from the light (a
+    // depth's margin; the cone's angle does not change along that line).
+    bool withinReach(const Light& L, const glm::dvec3& x, double alongLine = 0.0) const {
         if (L.type == LightType::Directional) return true;
         const glm::dvec3 v = x - L.position;
         const double d = glm::length(v);
-        if (!(d <= L.range - eps)) return false;
+        if (!(d <= L.range - std::max(eps, alongLine))) return false;
         if (L.type == LightType::Spot) {
             if (!(d > eps)) return false;
             const double angle = std::acos(std::clamp(glm::dot(v / d, L.direction), -1.0, 1.0));
@@ -354,7 +334,7 @@ struct Tracer {
             const double tanTheta = std::sqrt(std::max(0.0, 1 - c * c)) / c;
             if (!(gap > L.bias + L.slopeBias * tanTheta + margin)) return false;
         }
-        if (!withinReach(L, lk.q)) return false;
+        if (!withinReach(L, lk.q, lk.depth.margin)) return false;
         if (w.hasTerrain && ro.kind != ChunkObject::Kind::Terrain) {
             std::optional<double> ground = w.lsTerrainHeight(lk.q.x, lk.q.z);
             if (ground && !(lk.q.y >= *ground - w.terrainTolerance + lk.depth.margin)) return false;
@@ -386,7 +366,7 @@ struct Tracer {
         const Depth dp = depthOf(origin, dir, *first, w.objects[first->object].lsTriangle(first->prim));
         const double tp = dp.t;
         const glm::dvec3 p = origin + dir * tp;
-        if (!withinReach(L, p)) return std::nullopt;
+        if (!withinReach(L, p, dp.margin)) return std::nullopt;
         auto witness = [&](const WindowObject& ro, const Hit& h, const Lookup& lk) {
             Witness wit;
             wit.wsOrigin = origin + w.wsOrigin;
@@ -436,10 +416,10 @@ struct Tracer {
 };
 
 // The tracer of a window's scene, with margins well above float rounding of window-local
-// coordinates (~6e-8 relative) for Embree's distances, and 1e-9 of the same scale for
-// depths recomputed in double (far above double rounding; depthOf keeps the float value
-// where the line is nearly edge-on). Point and spot lights widen both by their position
-// and range.
+// coordinates (~6e-8 relative) for Embree's positions (eps: how far its hit point may lie
+// off the hit triangle's plane; a distance along the line gets eps over the cosine,
+// hit_depth.h), and 1e-9 of the same scale for depths recomputed in double (far above
+// double rounding). Point and spot lights widen both by their position and range.
 Tracer makeTracer(const BakeWindow& window, const WindowScene& scene, const RaycastOptions& opt) {
     const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
     const double diag = glm::length(window.lsBounds.max - window.lsBounds.min);
