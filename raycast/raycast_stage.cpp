@@ -34,6 +34,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <tuple>
 
 #include <embree3/rtcore.h>
 #include <glm/geometric.hpp>
@@ -67,6 +68,9 @@ struct RaycastStage::Impl {
     std::unique_ptr<GroupSampleCache> samples;  // per mesh, for the whole bake
     const BakeWindow* keptFor = nullptr;  // keepScene's window
     std::optional<WindowScene> kept;      // its scene, once a search built it
+    size_t shortTargets = 0;              // deferLongSearches
+    const BakeWindow* deferredFor = nullptr;  // run()'s window, while `deferred` waits
+    std::vector<WitnessSearch> deferred;      // the rest of its short searches
     std::mutex errorMutex;
     std::string lastError;
 
@@ -112,7 +116,11 @@ void RaycastStage::keepScene(const BakeWindow& window) {
 void RaycastStage::dropScene() {
     impl_->kept.reset();
     impl_->keptFor = nullptr;
+    impl_->deferred.clear();
+    impl_->deferredFor = nullptr;
 }
+
+void RaycastStage::deferLongSearches(size_t firstTargets) { impl_->shortTargets = firstTargets; }
 
 void RaycastStage::forgetMeshes(const std::unordered_set<const Mesh*>& meshes) {
     dropScene();  // it places them
@@ -449,6 +457,14 @@ struct SearchPass {
     // this reason; so the few long searches of a window's terrains share the threads with
     // its other searches instead of running after them, two or three at a time.
     const char* receiverSideWhy = nullptr;
+    // Non-zero: a terrain's own-sample searches trace only their first `shortTargets`
+    // samples; each bit left undecided goes to `deferred` (under its mutex) with what a
+    // later search needs to go on (RaycastStage::deferLongSearches).
+    size_t shortTargets = 0;
+    std::mutex* deferredMutex = nullptr;
+    std::vector<WitnessSearch>* deferred = nullptr;
+
+    bool defers(const WindowObject& o) const { return shortTargets > 0 && o.kind == ChunkObject::Kind::Terrain; }
 
     // `countExamined`: the bits count once per stage run (the receiver-side pass examines
     // bits the first one already counted).
@@ -476,11 +492,16 @@ struct SearchPass {
         uint64_t localRays = 0;
         std::optional<bool> large;  // isLargeCaster, asked once
         std::vector<WitnessSearch> through;  // the receiver-side searches the bits call for
+        const bool shortFirst = ownSamples && defers(window.objects[object]);
         for (int l = 0; l < cv.lightCount; ++l) {
             if (task.light >= 0 && l != task.light) continue;
             Decision& d = cv.at(task.object, task.group, l);
             if (d.verdict != Verdict::Undecided) continue;
             if (countExamined) ++examined;
+            if (shortFirst) {
+                searchShort(task, object, l, d, why, localRays);
+                continue;
+            }
             searchBit(task, object, window.lsLights[size_t(l)], ownSamples, d, why, localRays);
             if (!receiverSideWhy || !ownSamples || d.verdict != Verdict::Undecided) continue;
             if (!large) large = isLargeCaster(window.objects[object], uint32_t(task.group), opt.areaSamples, opt.largeCasterSpacing);
@@ -500,11 +521,12 @@ struct SearchPass {
     // long list (a receiver-side search: thousands of targets, most often all of them
     // traced for nothing) in blocks on every thread, the witness of the first target in
     // order kept: the same witness as one thread going through them in order.
+    // Points [begin, end) only.
     bool searchThrough(const WitnessSearch& task, uint32_t object, const Light& L, const std::vector<glm::dvec3>& points,
-                       Decision& d, const char* why, size_t& lit, uint64_t& localRays) const {
-        std::optional<Witness> wit = points.size() >= 2 * kTargetBlock
-                                         ? firstWitnessInBlocks(task, object, L, points, lit, localRays)
-                                         : firstWitness(task, object, L, points, 0, points.size(), nullptr, lit, localRays);
+                       size_t begin, size_t end, Decision& d, const char* why, size_t& lit, uint64_t& localRays) const {
+        std::optional<Witness> wit = end - begin >= 2 * kTargetBlock
+                                         ? firstWitnessInBlocks(task, object, L, points, begin, end, lit, localRays)
+                                         : firstWitness(task, object, L, points, begin, end, nullptr, lit, localRays);
         if (!wit) return false;
         decide(d, Verdict::Kept, "raycast", why, std::move(*wit));
         ++kept;
@@ -548,9 +570,9 @@ struct SearchPass {
     // gone through to its end; the block itself stopped at its witness): the same counts on
     // any number of threads, the rays of later blocks not counted.
     std::optional<Witness> firstWitnessInBlocks(const WitnessSearch& task, uint32_t object, const Light& L,
-                                                const std::vector<glm::dvec3>& points, size_t& lit,
-                                                uint64_t& localRays) const {
-        const size_t blocks = (points.size() + kTargetBlock - 1) / kTargetBlock;
+                                                const std::vector<glm::dvec3>& points, size_t pointsBegin,
+                                                size_t pointsEnd, size_t& lit, uint64_t& localRays) const {
+        const size_t blocks = (pointsEnd - pointsBegin + kTargetBlock - 1) / kTargetBlock;
         struct Block {
             std::optional<Witness> witness;
             size_t lit = 0;
@@ -562,7 +584,7 @@ struct SearchPass {
         tbb::parallel_for(size_t(0), blocks, [&](size_t i) {
             const FloatModeScope mode(callers);
             Block& part = parts[i];
-            const size_t begin = i * kTargetBlock, end = std::min(points.size(), begin + kTargetBlock);
+            const size_t begin = pointsBegin + i * kTargetBlock, end = std::min(pointsEnd, begin + kTargetBlock);
             part.witness = firstWitness(task, object, L, points, begin, end, &found, part.lit, part.rays);
         });
         for (Block& part : parts) {
@@ -576,18 +598,20 @@ struct SearchPass {
     // One bit: the task's targets, then, for a point or spot light whose reach cuts the
     // group, points on the part within reach (its own points beyond reach cannot be p).
     // Without a witness, a note says what was tried.
+    // From the task's fromTarget on, its litBefore counted lit.
     void searchBit(const WitnessSearch& task, uint32_t object, const Light& L, bool ownSamples, Decision& d,
                    const char* why, uint64_t& localRays) const {
         const std::vector<glm::dvec3>& targets = task.targets;
-        size_t lit = 0;
-        if (searchThrough(task, object, L, targets, d, why, lit, localRays)) return;
+        size_t lit = task.litBefore;
+        const size_t from = std::min(task.fromTarget, targets.size());
+        if (searchThrough(task, object, L, targets, from, targets.size(), d, why, lit, localRays)) return;
         std::vector<glm::dvec3> within;
         size_t litWithin = 0;
         if (ownSamples && L.type != LightType::Directional &&
             std::any_of(targets.begin(), targets.end(), [&](const glm::dvec3& t) { return !tracer.withinReach(L, t); })) {
             within = sampleGroupWithinReach(window.objects[object], uint32_t(task.group), L, opt.areaSamples,
                                             opt.maxFeatureSamples);
-            if (searchThrough(task, object, L, within, d, why, litWithin, localRays)) return;
+            if (searchThrough(task, object, L, within, 0, within.size(), d, why, litWithin, localRays)) return;
         }
         if (task.throughReceivers)
             addNote(d, "raycast",
@@ -610,6 +634,21 @@ struct SearchPass {
                                               " points on its triangles within the light's reach (" +
                                               std::to_string(litWithin) + " lit)"));
     }
+
+    // The first shortTargets of a bit's own samples; undecided, it is deferred (no note
+    // yet: the rest of the search adds it) with where the rest begins.
+    void searchShort(const WitnessSearch& task, uint32_t object, int light, Decision& d, const char* why,
+                     uint64_t& localRays) const {
+        const std::vector<glm::dvec3>& targets = task.targets;
+        const size_t end = std::min(shortTargets, targets.size());
+        size_t lit = 0;
+        if (searchThrough(task, object, window.lsLights[size_t(light)], targets, 0, end, d, why, lit, localRays)) return;
+        WitnessSearch rest{task.object, task.group, light, {}};
+        rest.fromTarget = end;
+        rest.litBefore = lit;
+        std::lock_guard<std::mutex> lock(*deferredMutex);
+        deferred->push_back(std::move(rest));
+    }
 };
 
 }  // namespace
@@ -625,7 +664,17 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
                     searches.push_back({oi, g, -1, {}});
                     break;
                 }
-    return search(window, cv, searches, stats, "witness ray", true);
+    return search(window, cv, searches, stats, "witness ray", true, true, true);
+}
+
+Status RaycastStage::finishDeferred(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
+    Impl& im = *impl_;
+    if (im.deferredFor != &window) return Status::ok();
+    std::vector<WitnessSearch> rest = std::move(im.deferred);
+    im.deferred.clear();
+    im.deferredFor = nullptr;
+    // Their bits were counted examined by run().
+    return search(window, cv, rest, stats, "witness ray", true, false, false);
 }
 
 Status RaycastStage::searchAt(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch> searches,
@@ -634,7 +683,8 @@ Status RaycastStage::searchAt(const BakeWindow& window, ChunkVerdicts& cv, std::
 }
 
 Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch>& searches,
-                            StageStats& stats, const char* reason, bool receiverSide) {
+                            StageStats& stats, const char* reason, bool receiverSide, bool shortFirst,
+                            bool countExamined) {
     const auto t0 = std::chrono::steady_clock::now();
     Impl& im = *impl_;
     if (!im.device) return makeError(ErrorKind::Internal, "", 0, "Embree device could not be created");
@@ -652,8 +702,24 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
         SearchPass pass{tracer, window, cv, im.opt, *im.samples, rays, kept, examined};
         if (receiverSide && im.opt.receiverSamples > 0)
             pass.receiverSideWhy = "witness ray through a receiver in the group's shadow (receiver-side search)";
-        pass.run(searches, reason, true);
+        std::mutex deferredMutex;
+        std::vector<WitnessSearch> deferred;
+        if (shortFirst && im.shortTargets > 0) {
+            pass.shortTargets = im.shortTargets;
+            pass.deferredMutex = &deferredMutex;
+            pass.deferred = &deferred;
+        }
+        pass.run(searches, reason, countExamined);
         if (Status s = stopStatus(); !s) return s;
+        if (pass.deferred) {
+            // In a fixed order whatever the threads did (the bits are independent; the order
+            // only fixes how finishDeferred's tasks are handed out).
+            std::sort(deferred.begin(), deferred.end(), [](const WitnessSearch& a, const WitnessSearch& b) {
+                return std::tie(a.object, a.group, a.light) < std::tie(b.object, b.group, b.light);
+            });
+            im.deferred = std::move(deferred);
+            im.deferredFor = &window;
+        }
         own.reset();
         im.scenes->noteRays(rays);
         stats.raysCast += rays;

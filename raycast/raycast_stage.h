@@ -43,6 +43,11 @@ struct WitnessSearch {
     // With no targets: aim through the receivers in the group's shadow for `light`
     // (receiver_targets.h) instead of through the group's own samples.
     bool throughReceivers = false;
+    // The group's own samples (no targets, not through receivers) from this index on: the
+    // rest of a search whose first samples were traced before (RaycastStage::finishDeferred),
+    // `litBefore` of them lit (for the note of a bit left undecided).
+    size_t fromTarget = 0;
+    size_t litBefore = 0;
     // A receiver triangle (window object, mesh triangle) the targets were aimed at: with a
     // normal bias, its moved copy is tested against every line too, besides the surfaces
     // the line hits (a lookup point off the surface lies on a line that may miss it).
@@ -79,10 +84,27 @@ public:
     void keepScene(const BakeWindow& window);
     void dropScene();
 
+    // The exact test before a terrain's long searches. From deferLongSearches(n) on, run()
+    // traces only the first n of a terrain bit's own samples and leaves the bit undecided
+    // without a note; finishDeferred() then searches on from sample n (and through the
+    // receivers in its shadow) for the bits still undecided. A bit ends with the same
+    // witness either way (the first of the same samples in the same order), and one the
+    // shadow volumes prove 0 in between has none: most of a terrain's bits, whose searches
+    // trace thousands of lines that find nothing under the ground (docs/semantics.md,
+    // "Stages run cheap to expensive"). n = 0 (the default): run() searches in full.
+    void deferLongSearches(size_t firstTargets);
+    // The rest of run()'s short searches on `window` (the same window, after the stages
+    // between); a no-op when run() deferred none.
+    Status finishDeferred(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats);
+
 private:
-    // `receiverSide`: a bit of a large caster its own samples leave undecided is then searched through the receivers in its shadow.
+    // `receiverSide`: a bit of a large caster its own samples leave undecided is then
+    // searched through the receivers in its shadow. `shortFirst`: the searches
+    // deferLongSearches selects are cut short and deferred. `countExamined`: the bits count
+    // as examined by the stage (not again when finishDeferred goes on with them).
     Status search(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch>& searches,
-                  StageStats& stats, const char* reason, bool receiverSide = false);
+                  StageStats& stats, const char* reason, bool receiverSide = false, bool shortFirst = false,
+                  bool countExamined = true);
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

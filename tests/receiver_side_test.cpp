@@ -122,7 +122,9 @@ Witness onlyReceiverSideFinds(const SpaceBuilder& b, const std::string& casterKe
             EXPECT_EQ(d->verdict, Verdict::Undecided) << d->stage << ": " << d->reason();
         }
     }
-    const cli::BakeResult r = bakeWith(b, freshTestDir("-on") / "space", 2048);
+    // Without the shadow volumes too: with them, a terrain's search goes on after their
+    // candidate receiver had its witness rays, which may find the witness first.
+    const cli::BakeResult r = bakeWith(b, freshTestDir("-on") / "space", 2048, false);
     const Decision* d = findDecision(r, terrain, 0, 0);
     EXPECT_NE(d, nullptr);
     if (!d) return {};
@@ -360,4 +362,115 @@ TEST(ReceiverSide, ALongTargetListKeepsTheFirstWitnessInOrder) {
     }
     EXPECT_EQ(one.rays, every.rays);
     EXPECT_GT(one.rays, 767u);  // the flat part's targets were traced
+}
+
+namespace {
+
+// Everything a bit's decision says, as text (verdict, stage, reason, witness, notes): two
+// searches that end the same way give the same string.
+std::string decisionText(const Decision& d) {
+    std::string s = std::to_string(int(d.verdict)) + "|" + std::string(d.stage) + "|" + std::string(d.reason());
+    if (const Witness* w = d.witness()) {
+        for (const glm::dvec3& v : {w->wsOrigin, w->wsDirection, w->wsP, w->wsQ})
+            s += "|" + std::to_string(v.x) + "," + std::to_string(v.y) + "," + std::to_string(v.z);
+        s += "|" + w->receiver;
+    }
+    for (const StageNote& n : d.notes()) s += "|" + std::string(n.stage) + ": " + n.text;
+    return s;
+}
+
+struct StageRun {
+    ChunkVerdicts cv;
+    StageStats stats;
+    size_t terrainUndecidedWithNotes = 0;  // after run(), before finishDeferred
+};
+
+// The raycast stage on chunk (0, 0)'s window: in full, or its searches cut short after
+// `firstTargets` own samples, then finished.
+StageRun runRaycast(const Loaded& l, size_t firstTargets) {
+    StageRun r;
+    r.cv = makeChunkVerdicts(*l.space, l.window);
+    raycast::RaycastStage stage;
+    if (firstTargets > 0) stage.deferLongSearches(firstTargets);
+    EXPECT_TRUE(stage.run(l.window, r.cv, r.stats));
+    for (const ObjectVerdicts& ov : r.cv.objects)
+        for (const Decision& d : ov.decisions)
+            r.terrainUndecidedWithNotes += ov.terrain && d.verdict == Verdict::Undecided && !d.notes().empty();
+    EXPECT_TRUE(stage.finishDeferred(l.window, r.cv, r.stats));
+    return r;
+}
+
+}  // namespace
+
+// A search cut short and finished after the other stages (RaycastStage::deferLongSearches)
+// ends every bit as the full search does: the same witness (the first of the same samples
+// in order), or the same note with the same counts; and, cut on a packet boundary, with the
+// same rays. Every scene of this file, cut after 1, 16 and 256 samples.
+TEST(ReceiverSide, ASearchCutShortAndFinishedEndsAsTheFullSearch) {
+    std::string ridge;
+    const std::vector<std::pair<const char*, SpaceBuilder>> scenes = {
+        {"ridge", ridgeWithStoneBeyond()},
+        {"plate in the band", plateInTheBand()},
+        {"plate under the band", plateInTheBand(-0.02)},
+        {"mesh ridge", meshRidgeWithStoneBeyond(&ridge)},
+    };
+    for (size_t si = 0; si < scenes.size(); ++si) {
+        const auto& [name, b] = scenes[si];
+        const fs::path dir = freshTestDir("-" + std::to_string(si)) / "space";
+        b.write(dir.string());
+        const Loaded l(dir);
+        ASSERT_TRUE(l.space) << name;
+        const StageRun full = runRaycast(l, 0);
+        size_t undecided = 0;
+        for (const ObjectVerdicts& ov : full.cv.objects)
+            for (const Decision& d : ov.decisions) undecided += d.verdict == Verdict::Undecided;
+        for (const size_t cut : {size_t(1), size_t(16), size_t(256)}) {
+                SCOPED_TRACE(std::string(name) + ", cut after " + std::to_string(cut));
+                const StageRun cutShort = runRaycast(l, cut);
+                EXPECT_EQ(cutShort.terrainUndecidedWithNotes, 0u);  // the note waits for the rest of the search
+                ASSERT_EQ(cutShort.cv.objects.size(), full.cv.objects.size());
+                for (size_t oi = 0; oi < full.cv.objects.size(); ++oi)
+                    for (size_t k = 0; k < full.cv.objects[oi].decisions.size(); ++k)
+                        EXPECT_EQ(decisionText(cutShort.cv.objects[oi].decisions[k]),
+                                  decisionText(full.cv.objects[oi].decisions[k]))
+                            << "object " << oi << " bit " << k;
+                EXPECT_EQ(cutShort.stats.bitsExamined, full.stats.bitsExamined);
+                EXPECT_EQ(cutShort.stats.provedKept, full.stats.provedKept);
+                if (cut % 16 == 0) {
+                    EXPECT_EQ(cutShort.stats.raysCast, full.stats.raysCast);
+                }
+            }
+        if (std::string(name) == "plate under the band") {
+            EXPECT_GT(undecided, 0u);  // a note to compare
+        }
+    }
+}
+
+// In a bake, the shadow volumes come between a terrain's short search and the rest: the
+// terrain over the plate deeper than the tolerance is proved 0 by them, and the witness
+// rays stop after its first samples, instead of tracing all of them and the receiver side
+// for nothing (the same bake without the volumes traces those).
+TEST(ReceiverSide, TheVolumesProveATerrainBeforeItsLongSearch) {
+    const SpaceBuilder b = plateInTheBand(-0.02);
+    const ObjectLocation terrain = b.locateObjects().at(SpaceBuilder::terrainKey(0, 0));
+    auto raycastRow = [](const cli::BakeResult& r) {
+        const auto t = std::find_if(r.stages.begin(), r.stages.end(), [](const cli::StageTiming& s) { return s.name == "raycast"; });
+        EXPECT_NE(t, r.stages.end());
+        return t == r.stages.end() ? StageStats{} : t->stats;
+    };
+    const cli::BakeResult withVolumes = bakeWith(b, freshTestDir("-v") / "space", 2048);
+    const cli::BakeResult raysAlone = bakeWith(b, freshTestDir("-r") / "space", 2048, false);
+    const Decision* culled = findDecision(withVolumes, terrain, 0, 0);
+    ASSERT_NE(culled, nullptr);
+    EXPECT_EQ(culled->verdict, Verdict::Culled);
+    EXPECT_EQ(culled->stage, "geometry");
+    const Decision* open = findDecision(raysAlone, terrain, 0, 0);
+    ASSERT_NE(open, nullptr);
+    EXPECT_EQ(open->verdict, Verdict::Undecided);
+    // The short search: at most 256 samples, each a packet lane and at most a closest hit
+    // and the surfaces behind it; the full search traced more than 1,000 samples and the
+    // receiver side.
+    const StageStats shortRays = raycastRow(withVolumes), fullRays = raycastRow(raysAlone);
+    EXPECT_EQ(shortRays.bitsExamined, fullRays.bitsExamined);
+    EXPECT_LT(shortRays.raysCast * 3, fullRays.raysCast) << shortRays.raysCast << " against " << fullRays.raysCast;
 }
