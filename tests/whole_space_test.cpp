@@ -154,3 +154,38 @@ TEST(WholeSpace, NoCulledBitHasAWitnessAnywhereInTheWorld) {
     const DenseSearch windowOnly = searchTheWholeWorld(space, bakeAll(space, true));
     EXPECT_FALSE(windowOnly.witnessed.empty()) << "the window-only bake's false cull must be found";
 }
+
+// Every scene x the two proofs that must never meet: on generated worlds (a corner of the
+// forest, and the whole real-map-like world R: 400 chunks of half-buried rocks under a low
+// and a high sun), the geometry stage also examines every bit the witness rays kept, and
+// the bake fails if it would prove one of them 0 (GeometryOptions::crossCheckWitnesses). A
+// meeting is a wrong witness (a false keep, as the float depth on a rock face seen nearly
+// edge-on made on R's chunk fffe0007o; raycast/hit_depth.h) or a wrong proof (a false
+// cull): either is a bug. (R takes 15-25 s here, most of the test.)
+TEST(CrossCheck, NoWitnessMeetsAProofOfZeroOnGeneratedWorlds) {
+    bench::WorldSpec forest = bench::worldS();
+    forest.name = "cross-check-forest";
+    forest.objectsPerChunk = 60;
+    forest.localLights = 4;
+    forest.seed = 3811;
+    const bench::WorldSpec rocks = bench::worldR();
+    for (const bench::WorldSpec& w : {forest, rocks}) {
+        SCOPED_TRACE(w.name);
+        const fs::path space = freshTestDir("-" + w.name) / "space";
+        bench::writeWorld(w, space.string());
+        cli::BakeOptions opt;
+        opt.spaceDir = space.string();
+        opt.write = false;
+        opt.useGpu = false;
+        opt.geometry.crossCheckWitnesses = true;
+        Expected<cli::BakeResult> r = cli::runBake(opt);
+        ASSERT_TRUE(r) << r.error().what();
+        uint64_t kept = 0, examined = 0;
+        for (const cli::StageTiming& t : r->stages) {
+            if (t.name == "raycast") kept = t.stats.provedKept;
+            if (t.name == "geometry") examined = t.stats.bitsExamined;
+        }
+        EXPECT_GT(kept, 1000u) << "the world must give the cross-check witnesses";
+        EXPECT_GE(examined, kept);  // every kept bit went to the exact test too
+    }
+}
