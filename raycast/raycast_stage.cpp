@@ -34,7 +34,6 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
-#include <tuple>
 
 #include <embree3/rtcore.h>
 #include <glm/geometric.hpp>
@@ -664,7 +663,7 @@ Status RaycastStage::run(const BakeWindow& window, ChunkVerdicts& cv, StageStats
                     searches.push_back({oi, g, -1, {}});
                     break;
                 }
-    return search(window, cv, searches, stats, "witness ray", true, true, true);
+    return search(window, cv, searches, stats, "witness ray", Pass::Stage);
 }
 
 Status RaycastStage::finishDeferred(const BakeWindow& window, ChunkVerdicts& cv, StageStats& stats) {
@@ -673,18 +672,16 @@ Status RaycastStage::finishDeferred(const BakeWindow& window, ChunkVerdicts& cv,
     std::vector<WitnessSearch> rest = std::move(im.deferred);
     im.deferred.clear();
     im.deferredFor = nullptr;
-    // Their bits were counted examined by run().
-    return search(window, cv, rest, stats, "witness ray", true, false, false);
+    return search(window, cv, rest, stats, "witness ray", Pass::Deferred);
 }
 
 Status RaycastStage::searchAt(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch> searches,
                               StageStats& stats, const char* reason) {
-    return search(window, cv, searches, stats, reason);
+    return search(window, cv, searches, stats, reason, Pass::At);
 }
 
 Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::vector<WitnessSearch>& searches,
-                            StageStats& stats, const char* reason, bool receiverSide, bool shortFirst,
-                            bool countExamined) {
+                            StageStats& stats, const char* reason, Pass which) {
     const auto t0 = std::chrono::steady_clock::now();
     Impl& im = *impl_;
     if (!im.device) return makeError(ErrorKind::Internal, "", 0, "Embree device could not be created");
@@ -700,23 +697,19 @@ Status RaycastStage::search(const BakeWindow& window, ChunkVerdicts& cv, std::ve
         const Tracer tracer = makeTracer(window, scene, im.opt);
         std::atomic<uint64_t> rays{0}, kept{0}, examined{0};
         SearchPass pass{tracer, window, cv, im.opt, *im.samples, rays, kept, examined};
-        if (receiverSide && im.opt.receiverSamples > 0)
+        if (which != Pass::At && im.opt.receiverSamples > 0)
             pass.receiverSideWhy = "witness ray through a receiver in the group's shadow (receiver-side search)";
         std::mutex deferredMutex;
         std::vector<WitnessSearch> deferred;
-        if (shortFirst && im.shortTargets > 0) {
+        if (which == Pass::Stage && im.shortTargets > 0) {
             pass.shortTargets = im.shortTargets;
             pass.deferredMutex = &deferredMutex;
             pass.deferred = &deferred;
         }
-        pass.run(searches, reason, countExamined);
+        pass.run(searches, reason, which != Pass::Deferred);
         if (Status s = stopStatus(); !s) return s;
         if (pass.deferred) {
-            // In a fixed order whatever the threads did (the bits are independent; the order
-            // only fixes how finishDeferred's tasks are handed out).
-            std::sort(deferred.begin(), deferred.end(), [](const WitnessSearch& a, const WitnessSearch& b) {
-                return std::tie(a.object, a.group, a.light) < std::tie(b.object, b.group, b.light);
-            });
+            // In whatever order the threads left them: each is one bit, searched on its own.
             im.deferred = std::move(deferred);
             im.deferredFor = &window;
         }

@@ -98,13 +98,13 @@ public:
     Status finishDeferred(const BakeWindow& window, ChunkVerdicts& verdicts, StageStats& stats);
 
 private:
-    // `receiverSide`: a bit of a large caster its own samples leave undecided is then
-    // searched through the receivers in its shadow. `shortFirst`: the searches
-    // deferLongSearches selects are cut short and deferred. `countExamined`: the bits count
-    // as examined by the stage (not again when finishDeferred goes on with them).
+    // Which search: run()'s (a terrain's own samples cut short when deferLongSearches
+    // asked, then for a large caster still undecided the receivers in its shadow; every bit
+    // counted examined), finishDeferred()'s (the rest of those, and the receivers; its bits
+    // were counted by run()), or searchAt()'s (the given targets alone).
+    enum class Pass { Stage, Deferred, At };
     Status search(const BakeWindow& window, ChunkVerdicts& verdicts, std::vector<WitnessSearch>& searches,
-                  StageStats& stats, const char* reason, bool receiverSide = false, bool shortFirst = false,
-                  bool countExamined = true);
+                  StageStats& stats, const char* reason, Pass which);
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };
