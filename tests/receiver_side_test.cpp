@@ -14,10 +14,10 @@
 
 #include "cli/pipeline.h"
 #include "core/window.h"
-#include "io/scene_reader.h"
 #include "raycast/raycast_stage.h"
 #include "raycast/receiver_targets.h"
 #include "tests/support/bake_lookup.h"
+#include "tests/support/loaded_window.h"
 #include "tests/support/space_builder.h"
 #include "tests/test_files.h"
 
@@ -72,19 +72,6 @@ SpaceBuilder plateInTheBand(double plateY = -0.005) {
     b.addModel("plate", Affine::translation({41.3, plateY, 57.7}));
     return b;
 }
-
-// The window of chunk (0, 0) of the space written in `dir`.
-struct Loaded {
-    explicit Loaded(const fs::path& dir) {
-        Expected<Space> loaded = loadSpace(dir.string(), "");
-        EXPECT_TRUE(loaded) << (loaded ? "" : loaded.error().what());
-        if (loaded) space = std::make_unique<Space>(std::move(*loaded));
-        if (space) window = buildWindow(*space, ChunkCoord{0, 0}, meshes);
-    }
-    std::unique_ptr<Space> space;
-    TerrainMeshes meshes;
-    BakeWindow window;
-};
 
 // The ridge of ridgeWithStoneBeyond as a model (a cliff or hill modelled as a mesh, no
 // terrain): the receiver-side search serves any large continuous caster.
@@ -184,11 +171,12 @@ TEST(ReceiverSide, PlateUnderTheBandGetsNoTargetAndTerrainIsCulled) {
     ASSERT_NE(d, nullptr);
     EXPECT_EQ(d->verdict, Verdict::Culled) << d->stage << ": " << d->reason();
 
-    const Loaded l(dir);
-    ASSERT_EQ(l.window.terrainObjects.size(), 1u);
+    const std::unique_ptr<Loaded> l = load(b);
+    ASSERT_TRUE(l);
+    ASSERT_EQ(l->window.terrainObjects.size(), 1u);
     raycast::GroupSampleCache samples(256, 1024);
     const std::vector<glm::dvec3> targets =
-        raycast::receiverTargets(l.window, uint32_t(l.window.terrainObjects[0]), 0, l.window.lsLights[0], 512, samples);
+        raycast::receiverTargets(l->window, uint32_t(l->window.terrainObjects[0]), 0, l->window.lsLights[0], 512, samples);
     EXPECT_FALSE(targets.empty());
     for (const glm::dvec3& p : targets) EXPECT_GT(p.y, -0.015) << "a target under the band";
 }
@@ -197,11 +185,9 @@ TEST(ReceiverSide, PlateUnderTheBandGetsNoTargetAndTerrainIsCulled) {
 // at most the budget, and the stone of the ridge scene gets some (its share by the square
 // root of its projected area).
 TEST(ReceiverSide, TargetsAreDeterministicBoundedAndReachSmallReceivers) {
-    const SpaceBuilder b = ridgeWithStoneBeyond();
-    const fs::path dir = freshTestDir() / "space";
-    b.write(dir.string());
-    const Loaded l(dir);
-    const BakeWindow& w = l.window;
+    const std::unique_ptr<Loaded> l = load(ridgeWithStoneBeyond());
+    ASSERT_TRUE(l);
+    const BakeWindow& w = l->window;
     ASSERT_EQ(w.terrainObjects.size(), 1u);
     raycast::GroupSampleCache samples(256, 1024);
     const uint32_t t = uint32_t(w.terrainObjects[0]);
@@ -298,10 +284,9 @@ TEST(ReceiverSide, APointLightsTargetsLieWithinItsReach) {
         const double a = k * 0.785398, r = k % 2 ? 5.0 : 30.0;  // near, and beyond range
         b.addModel("cube", Affine::translation({50 + r * std::cos(a), 0.2, 50 + r * std::sin(a)}));
     }
-    const fs::path dir = freshTestDir() / "space";
-    b.write(dir.string());
-    const Loaded l(dir);
-    const BakeWindow& w = l.window;
+    const std::unique_ptr<Loaded> l = load(b);
+    ASSERT_TRUE(l);
+    const BakeWindow& w = l->window;
     raycast::GroupSampleCache samples(256, 1024);
     const auto targets = raycast::receiverTargets(w, uint32_t(w.terrainObjects[0]), 0, w.lsLights[0], 1000, samples);
     ASSERT_GT(targets.size(), 100u);
@@ -322,11 +307,9 @@ TEST(ReceiverSide, APointLightsTargetsLieWithinItsReach) {
 // start the fourth, then more of the flat part to 2,048 targets. On one thread and on
 // every thread: the same witness, on the first stone target, and the same rays.
 TEST(ReceiverSide, ALongTargetListKeepsTheFirstWitnessInOrder) {
-    const fs::path dir = freshTestDir() / "space";
-    ridgeWithStoneBeyond().write(dir.string());
-    Loaded l(dir);
-    ASSERT_TRUE(l.space);
-    const BakeWindow& w = l.window;
+    const std::unique_ptr<Loaded> l = load(ridgeWithStoneBeyond());
+    ASSERT_TRUE(l);
+    const BakeWindow& w = l->window;
     const glm::dvec3 first{109.85, -1.69 + 0.1, 36.1 + 0.05};  // on the stone's face to the light
     std::vector<glm::dvec3> targets;
     for (int k = 0; k < 767; ++k) targets.push_back(glm::dvec3(5.0 + 0.05 * k, 0.0, 5.0 + 0.1 * k) - w.wsOrigin);
@@ -343,7 +326,7 @@ TEST(ReceiverSide, ALongTargetListKeepsTheFirstWitnessInOrder) {
     auto search = [&](int threads) {
         std::unique_ptr<tbb::global_control> limit;
         if (threads > 0) limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
-        ChunkVerdicts cv = makeChunkVerdicts(*l.space, w);
+        ChunkVerdicts cv = l->verdicts;
         size_t terrain = cv.objects.size();
         for (size_t oi = 0; oi < cv.objects.size(); ++oi)
             if (cv.objects[oi].terrain) terrain = oi;
@@ -389,7 +372,7 @@ struct StageRun {
 // `firstTargets` own samples, then finished.
 StageRun runRaycast(const Loaded& l, size_t firstTargets) {
     StageRun r;
-    r.cv = makeChunkVerdicts(*l.space, l.window);
+    r.cv = l.verdicts;
     raycast::RaycastStage stage;
     if (firstTargets > 0) stage.deferLongSearches(firstTargets);
     EXPECT_TRUE(stage.run(l.window, r.cv, r.stats));
@@ -416,30 +399,28 @@ TEST(ReceiverSide, ASearchCutShortAndFinishedEndsAsTheFullSearch) {
     };
     for (size_t si = 0; si < scenes.size(); ++si) {
         const auto& [name, b] = scenes[si];
-        const fs::path dir = freshTestDir("-" + std::to_string(si)) / "space";
-        b.write(dir.string());
-        const Loaded l(dir);
-        ASSERT_TRUE(l.space) << name;
-        const StageRun full = runRaycast(l, 0);
+        const std::unique_ptr<Loaded> l = load(b, "-" + std::to_string(si));
+        ASSERT_TRUE(l) << name;
+        const StageRun full = runRaycast(*l, 0);
         size_t undecided = 0;
         for (const ObjectVerdicts& ov : full.cv.objects)
             for (const Decision& d : ov.decisions) undecided += d.verdict == Verdict::Undecided;
         for (const size_t cut : {size_t(1), size_t(16), size_t(256)}) {
-                SCOPED_TRACE(std::string(name) + ", cut after " + std::to_string(cut));
-                const StageRun cutShort = runRaycast(l, cut);
-                EXPECT_EQ(cutShort.terrainUndecidedWithNotes, 0u);  // the note waits for the rest of the search
-                ASSERT_EQ(cutShort.cv.objects.size(), full.cv.objects.size());
-                for (size_t oi = 0; oi < full.cv.objects.size(); ++oi)
-                    for (size_t k = 0; k < full.cv.objects[oi].decisions.size(); ++k)
-                        EXPECT_EQ(decisionText(cutShort.cv.objects[oi].decisions[k]),
-                                  decisionText(full.cv.objects[oi].decisions[k]))
-                            << "object " << oi << " bit " << k;
-                EXPECT_EQ(cutShort.stats.bitsExamined, full.stats.bitsExamined);
-                EXPECT_EQ(cutShort.stats.provedKept, full.stats.provedKept);
-                if (cut % 16 == 0) {
-                    EXPECT_EQ(cutShort.stats.raysCast, full.stats.raysCast);
-                }
+            SCOPED_TRACE(std::string(name) + ", cut after " + std::to_string(cut));
+            const StageRun cutShort = runRaycast(*l, cut);
+            EXPECT_EQ(cutShort.terrainUndecidedWithNotes, 0u);  // the note waits for the rest of the search
+            ASSERT_EQ(cutShort.cv.objects.size(), full.cv.objects.size());
+            for (size_t oi = 0; oi < full.cv.objects.size(); ++oi)
+                for (size_t k = 0; k < full.cv.objects[oi].decisions.size(); ++k)
+                    EXPECT_EQ(decisionText(cutShort.cv.objects[oi].decisions[k]),
+                              decisionText(full.cv.objects[oi].decisions[k]))
+                        << "object " << oi << " bit " << k;
+            EXPECT_EQ(cutShort.stats.bitsExamined, full.stats.bitsExamined);
+            EXPECT_EQ(cutShort.stats.provedKept, full.stats.provedKept);
+            if (cut % 16 == 0) {
+                EXPECT_EQ(cutShort.stats.raysCast, full.stats.raysCast);
             }
+        }
         if (std::string(name) == "plate under the band") {
             EXPECT_GT(undecided, 0u);  // a note to compare
         }
