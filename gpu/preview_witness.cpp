@@ -9,6 +9,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "core/line_crossing.h"
 #include "core/mesh_index.h"
 
 namespace shadowcull::gpu {
@@ -50,11 +51,10 @@ std::vector<ExactLightRays::Hit> ExactLightRays::hitsAlong(const glm::dvec3& ori
             [&](uint32_t t) {
                 if (hasRepeatedVertex(*o.mesh, t)) return;
                 const auto [a, b, c] = o.lsTriangle(t);
-                const glm::dvec3 e1 = b - a, e2 = c - a, pv = glm::cross(dir, e2);
-                const double det = glm::dot(e1, pv);
-                if (!(std::abs(det) > 1e-12 * glm::length(glm::cross(e1, e2)))) return;  // edge-on
-                const glm::dvec3 tv = origin - a, qv = glm::cross(tv, e1);
-                const double u = glm::dot(tv, pv) / det, v = glm::dot(dir, qv) / det, s = glm::dot(e2, qv) / det;
+                const glm::dvec3 e1 = b - a, e2 = c - a;
+                const LineCrossing x = lineCrossing(origin, dir, a, e1, e2);
+                if (!(std::abs(x.det) > 1e-12 * glm::length(glm::cross(e1, e2)))) return;  // edge-on
+                const double u = x.u, v = x.v, s = x.t;
                 if (!(s > 0 && s < tEnd) || u < -kEdgeSlack || v < -kEdgeSlack || u + v > 1 + kEdgeSlack) return;
                 hits.push_back({s, k, t, u > kEdgeSlack && v > kEdgeSlack && u + v < 1 - kEdgeSlack});
             });

@@ -16,6 +16,7 @@
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
+#include "core/line_crossing.h"
 #include "core/rounding.h"
 
 namespace shadowcull::raycast {
@@ -39,20 +40,14 @@ inline HitDepth hitDepth(const glm::dvec3& origin, const glm::dvec3& dir, float 
                          const std::array<glm::dvec3, 3>& tri, double eps, double exactEps) {
     const auto& [a, b, c] = tri;
     const glm::dvec3 e1 = b - a, e2 = c - a;
-    const glm::dvec3 pv = glm::cross(dir, e2);
-    const double det = glm::dot(e1, pv);  // -dir . (e1 x e2)
+    const LineCrossing x = lineCrossing(origin, dir, a, e1, e2);
     const double area2 = glm::length(glm::cross(e1, e2));
-    const double cosAbs = area2 > 0 ? std::min(1.0, std::abs(det) / area2) : 0.0;
+    const double cosAbs = area2 > 0 ? std::min(1.0, std::abs(x.det) / area2) : 0.0;
     const HitDepth coarse{double(floatT), alongLineFromPlane(eps, cosAbs)};
     if (!(cosAbs > 1e-3)) return coarse;
-    const glm::dvec3 tv = origin - a;
-    const double u = glm::dot(tv, pv) / det;
-    const glm::dvec3 qv = glm::cross(tv, e1);
-    const double v = glm::dot(dir, qv) / det;
-    if (!(u >= 0 && v >= 0 && u + v <= 1)) return coarse;
-    const double t = glm::dot(e2, qv) / det;
-    if (!(std::abs(t - coarse.t) <= coarse.margin)) return {coarse.t, HUGE_VAL};
-    return {t, exactEps};
+    if (!(x.u >= 0 && x.v >= 0 && x.u + x.v <= 1)) return coarse;
+    if (!(std::abs(x.t - coarse.t) <= coarse.margin)) return {coarse.t, HUGE_VAL};
+    return {x.t, exactEps};
 }
 
 }  // namespace shadowcull::raycast

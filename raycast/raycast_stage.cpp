@@ -39,6 +39,7 @@
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
+#include "core/line_crossing.h"
 #include "raycast/embree_scene.h"
 #include "raycast/group_samples.h"
 #include "raycast/hit_depth.h"
@@ -304,16 +305,11 @@ struct Tracer {
         for (double sign : {1.0, -1.0}) {
             if (sign < 0 && !twoSided) break;
             const glm::dvec3 offset = (sign * L.normalBias / nl) * n;
-            const glm::dvec3 a = tri[0] + offset, e1 = tri[1] - tri[0], e2 = tri[2] - tri[0];
-            const glm::dvec3 pv = glm::cross(dir, e2);
-            const double det = glm::dot(e1, pv);
-            if (!(std::abs(det) > 1e-3 * nl)) continue;
-            const glm::dvec3 tv = origin - a, qv = glm::cross(tv, e1);
-            const double u = glm::dot(tv, pv) / det, v = glm::dot(dir, qv) / det;
+            const LineCrossing x = lineCrossing(origin, dir, tri[0] + offset, tri[1] - tri[0], tri[2] - tri[0]);
+            if (!(std::abs(x.det) > 1e-3 * nl)) continue;
             constexpr double kInside = 1e-9;
-            if (!(u > kInside && v > kInside && u + v < 1 - kInside)) continue;
-            const double t = glm::dot(e2, qv) / det;
-            out[count++] = {origin + dir * t - offset, Depth{t, exactEps}};
+            if (!(x.u > kInside && x.v > kInside && x.u + x.v < 1 - kInside)) continue;
+            out[count++] = {origin + dir * x.t - offset, Depth{x.t, exactEps}};
         }
         return count;
     }
