@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/file_read.h"
+#include "io/json_text.h"
 #include "io/json_integer.h"
 
 namespace shadowcull::results {
@@ -19,7 +20,6 @@ using nlohmann::json;
 // Writing
 
 json vecJson(const glm::dvec3& v) { return json::array({v.x, v.y, v.z}); }
-json boxJson(const BoxRecord& b) { return json::array({vecJson(b[0]), vecJson(b[1])}); }
 
 json lightJson(const LightRecord& L) {
     json j = {{"index", L.index}, {"bit", L.bit}, {"name", L.name}, {"type", L.type}};
@@ -29,29 +29,6 @@ json lightJson(const LightRecord& L) {
                                  std::pair{"bias", &L.bias}, std::pair{"slopeBias", &L.slopeBias},
                                  std::pair{"filterRadius", &L.filterRadius}, std::pair{"normalBias", &L.normalBias}})
         if (*v) j[key] = **v;
-    return j;
-}
-
-json bitJson(const BitRecord& b) {
-    json j;
-    j["light"] = b.light;
-    j["bit"] = b.bit;
-    j["verdict"] = b.verdict;
-    // Left out when empty, as the bake always has: an undecided bit has neither.
-    if (!b.stage.empty()) j["stage"] = b.stage;
-    if (!b.reason.empty()) j["reason"] = b.reason;
-    if (!b.notes.empty()) {
-        json notes = json::array();
-        for (const auto& [stage, text] : b.notes) notes.push_back({{"stage", stage}, {"saw", text}});
-        j["notes"] = std::move(notes);
-    }
-    if (b.witness) {
-        const WitnessRecord& w = *b.witness;
-        j["witness"] = {{"origin", vecJson(w.origin)}, {"direction", vecJson(w.direction)},
-                        {"p", vecJson(w.p)},           {"q", vecJson(w.q)},
-                        {"receiver", w.receiver}};
-        if (w.receiverBounds) j["witness"]["receiverBounds"] = boxJson(*w.receiverBounds);
-    }
     return j;
 }
 
@@ -72,28 +49,126 @@ json savingsJson(const std::vector<LightSavingsRecord>& savings) {
     return a;
 }
 
-json objectJson(const ObjectRecord& o) {
-    json j;
-    j["element"] = o.element;
-    j["kind"] = o.kind;
-    if (!o.uuid.empty()) j["uuid"] = o.uuid;
-    if (o.skipped) {
+// The chunk's objects, the bulk of the file, are written as text directly (io/json_text.h:
+// nlohmann's dump of the same value, byte for byte); each object's keys in std::map's
+// order, as nlohmann's json object keeps them.
+void vecText(JsonText& t, const glm::dvec3& v) {
+    t.beginArray();
+    t.value(v.x);
+    t.value(v.y);
+    t.value(v.z);
+    t.endArray();
+}
+
+void boxText(JsonText& t, const BoxRecord& b) {
+    t.beginArray();
+    vecText(t, b[0]);
+    vecText(t, b[1]);
+    t.endArray();
+}
+
+void witnessText(JsonText& t, const WitnessRecord& w) {
+    t.beginObject();
+    t.key("direction");
+    vecText(t, w.direction);
+    t.key("origin");
+    vecText(t, w.origin);
+    t.key("p");
+    vecText(t, w.p);
+    t.key("q");
+    vecText(t, w.q);
+    t.key("receiver");
+    t.value(w.receiver);
+    if (w.receiverBounds) {
+        t.key("receiverBounds");
+        boxText(t, *w.receiverBounds);
+    }
+    t.endObject();
+}
+
+void bitText(JsonText& t, const BitRecord& b) {
+    t.beginObject();
+    t.key("bit");
+    t.value(b.bit);
+    t.key("light");
+    t.value(b.light);
+    if (!b.notes.empty()) {
+        t.key("notes");
+        t.beginArray();
+        for (const auto& [stage, text] : b.notes) {
+            t.beginObject();
+            t.key("saw");
+            t.value(text);
+            t.key("stage");
+            t.value(stage);
+            t.endObject();
+        }
+        t.endArray();
+    }
+    // Left out when empty, as the bake always has: an undecided bit has neither.
+    if (!b.reason.empty()) {
+        t.key("reason");
+        t.value(b.reason);
+    }
+    if (!b.stage.empty()) {
+        t.key("stage");
+        t.value(b.stage);
+    }
+    t.key("verdict");
+    t.value(b.verdict);
+    if (b.witness) {
+        t.key("witness");
+        witnessText(t, *b.witness);
+    }
+    t.endObject();
+}
+
+void groupText(JsonText& t, const GroupRecord& g) {
+    t.beginObject();
+    if (g.bounds) {
+        t.key("bounds");
+        boxText(t, *g.bounds);
+    }
+    t.key("group");
+    t.value(g.group);
+    t.key("lights");
+    t.beginArray();
+    for (const BitRecord& b : g.lights) bitText(t, b);
+    t.endArray();
+    t.key("mask");
+    t.value(g.mask);
+    if (g.triangles) {
+        t.key("triangles");
+        t.value(*g.triangles);
+    }
+    t.endObject();
+}
+
+void objectText(JsonText& t, const ObjectRecord& o) {
+    t.beginObject();
+    t.key("element");
+    t.value(o.element);
+    if (!o.skipped) {
+        t.key("groups");
+        t.beginArray();
+        for (const GroupRecord& g : o.groups) groupText(t, g);
+        t.endArray();
+    }
+    t.key("kind");
+    t.value(o.kind);
+    if (!o.skipped) {
+        t.key("mask");
+        t.value(o.mask);
+    } else {
         // The bake could not use it: no verdicts to give, and no mask was written.
-        j["skipped"] = true;
-        return j;
+        t.key("skipped");
+        t.value(true);
     }
-    json groups = json::array();
-    for (const GroupRecord& g : o.groups) {
-        json bits = json::array();
-        for (const BitRecord& b : g.lights) bits.push_back(bitJson(b));
-        json jg = {{"group", g.group}, {"mask", g.mask}, {"lights", std::move(bits)}};
-        if (g.bounds) jg["bounds"] = boxJson(*g.bounds);
-        if (g.triangles) jg["triangles"] = *g.triangles;
-        groups.push_back(std::move(jg));
+    if (!o.uuid.empty()) {
+        t.key("uuid");
+        t.value(o.uuid);
     }
-    j["mask"] = o.mask;
-    j["groups"] = std::move(groups);
-    return j;
+    t.endObject();
 }
 
 // `text` (nlohmann's dump with indent 1, which never puts a raw newline inside a string)
@@ -258,7 +333,12 @@ std::string chunkOpenJson(const std::string& chunk) {
     return "  {\n   \"chunk\": " + dumped(json(chunk)) + ",\n   \"objects\": [";
 }
 
-std::string chunkObjectJson(const ObjectRecord& object) { return indented(dumped(objectJson(object)), 4); }
+std::string chunkObjectJson(const ObjectRecord& object) {
+    std::string text;
+    JsonText t(text, 4);
+    objectText(t, object);
+    return text;
+}
 
 std::string chunkCloseJson(const ChunkRecord& chunk, bool anyObject) {
     json j;
