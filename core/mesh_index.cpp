@@ -190,8 +190,10 @@ std::shared_ptr<const MeshVertexIndex> buildIndex(const Mesh& m) {
 }  // namespace
 
 const MeshVertexIndex& vertexIndex(const Mesh& mesh) {
+    if (const MeshVertexIndex* built = mesh.index.built_.load(std::memory_order_acquire)) return *built;
     std::lock_guard<std::mutex> lock(mesh.index.mutex_);
     if (!mesh.index.index_) mesh.index.index_ = buildIndex(mesh);
+    mesh.index.built_.store(mesh.index.index_.get(), std::memory_order_release);
     return *mesh.index.index_;
 }
 

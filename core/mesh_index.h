@@ -16,6 +16,7 @@
 // exactly at the window origin is rare).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <deque>
 #include <limits>
@@ -79,6 +80,7 @@ public:
     LazyMeshIndex(const LazyMeshIndex&) {}
     LazyMeshIndex& operator=(const LazyMeshIndex&) {
         std::lock_guard<std::mutex> lock(mutex_);
+        built_.store(nullptr, std::memory_order_release);
         index_.reset();
         return *this;
     }
@@ -87,6 +89,10 @@ private:
     friend const MeshVertexIndex& vertexIndex(const Mesh& mesh);
     mutable std::mutex mutex_;
     mutable std::shared_ptr<const MeshVertexIndex> index_;
+    // index_ once built (published after it, read without the lock): the geometry stage asks
+    // for a mesh's index once per caster triangle and receiving object, from every thread,
+    // and the lock cost more than the walk it guarded on a small mesh.
+    mutable std::atomic<const MeshVertexIndex*> built_{nullptr};
 };
 
 // Bounds on the factor by which t's linear part scales the area of any triangle: every

@@ -353,9 +353,10 @@ std::string chunkJson(const ChunkRecord& chunk) {
     std::string text = chunkOpenJson(chunk.chunk);
     for (size_t k = 0; k < chunk.objects.size(); ++k) {
         text += k == 0 ? "\n" : ",\n";
-        text += chunkObjectJson(chunk.objects[k]);
+        JsonText t(text, 4);  // chunkObjectJson's text, written in place
+        objectText(t, chunk.objects[k]);
     }
-    return text + chunkCloseJson(chunk, !chunk.objects.empty());
+    return text += chunkCloseJson(chunk, !chunk.objects.empty());
 }
 
 std::string resultsHead() { return "{\n \"chunks\": ["; }
