@@ -254,6 +254,10 @@ struct ObjectSlot {
 std::vector<ObjectSlot> objectSlots(const Space& space, ChunkCoord centre, const std::vector<ChunkCoord>& chunks, double oy,
                                     TerrainMeshes& terrainMeshes) {
     std::vector<ObjectSlot> slots;
+    size_t count = 0;
+    for (ChunkCoord c : chunks)
+        if (auto it = space.chunks.find(c); it != space.chunks.end()) count += it->second.objects.size();
+    slots.reserve(count);
     for (ChunkCoord c : chunks) {
         auto it = space.chunks.find(c);
         if (it == space.chunks.end()) continue;
@@ -407,6 +411,7 @@ BakeWindow buildWindow(const Space& space, ChunkCoord centre, const std::vector<
             if (!slots[k].object->skipped) placed[k] = placeObject(slots[k]);
     });
     if (stopRequested()) return w;
+    w.objects.reserve(slots.size());
     for (size_t k = 0; k < slots.size(); ++k) {
         if (slots[k].object->skipped) {
             ++w.skippedObjects;
