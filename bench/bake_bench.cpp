@@ -6,7 +6,7 @@
 //   bake_bench [--sizes S,M,L,XL,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N]
 //              [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]
 //              [--cross-check] [--no-gpu] [--gpu-baseline S,M,L|none] [--gpu-res N]
-//              [--gen-only] [--json FILE] [--gl auto,egl,osmesa]
+//              [--gen-only] [--json FILE] [--gl auto,egl,osmesa] [--rounds N] [--window-only] [--write]
 //
 // Each world is generated once into the work directory, keyed by a hash of its spec and
 // the generator version, and reused by later runs. Generation, each bake and each Embree
@@ -91,6 +91,9 @@ struct Options {
     // --window-only: each world baked again with the `neighbours` rectangle as its windows
     // (BakeOptions::neighbourWindows), side by side: what whole-space receivers cost.
     bool windowOnly = false;
+    // --write: the analytic bakes write their chunk files, as a user's bake does, into
+    // WORK/out-NAME (emptied before, removed after): the write is timed beside the stages.
+    bool write = false;
 };
 
 [[noreturn]] void usage(const char* why) {
@@ -99,7 +102,8 @@ struct Options {
                  "usage: bake_bench [--sizes S,M,L,XL,D,D2k,R] [--work DIR] [--threads N] [--max-chunks N [--contiguous]]\n"
                  "                  [--baseline-rays N] [--no-baseline] [--no-fork] [--no-raycast] [--no-geometry]\n"
                  "                  [--cross-check] [--no-gpu] [--gpu-baseline S,M,L|none] [--gpu-res N]\n"
-                 "                  [--gen-only] [--json FILE] [--gl auto,egl,osmesa] [--rounds N] [--window-only]\n",
+                 "                  [--gen-only] [--json FILE] [--gl auto,egl,osmesa] [--rounds N] [--window-only]\n"
+                 "                  [--write]\n",
                  why);
     std::exit(2);
 }
@@ -170,6 +174,8 @@ Options parseArgs(int argc, char** argv) {
             }
         } else if (a == "--window-only") {
             o.windowOnly = true;
+        } else if (a == "--write") {
+            o.write = true;
         } else if (a == "--json") {
             o.jsonOut = value();
         } else if (a == "--rounds") {
@@ -388,6 +394,14 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
         opt.gpuBaseline = true;
         opt.gpuResolution = o.gpuBaselineResolution;
     }
+    // --write: the chunk files written beside the world, never over it.
+    const fs::path outDir = o.work / ("out-" + spec.name);
+    if (o.write && !gpuBaseline && !neighbourWindows) {
+        std::error_code ec;
+        fs::remove_all(outDir, ec);
+        opt.write = true;
+        opt.outDir = outDir.string();
+    }
     // The device, if any, from SHADOWCULL_GL_DEVICE (as for the CLI's --gl-device).
     if (!o.glBackend.empty()) gpu::setGlChoice({*gpu::parseGlBackend(o.glBackend), gpu::glChoice().device});
     const std::vector<std::pair<int, int>> all = gridChunks(spec);
@@ -459,6 +473,11 @@ int bakeChild(const WorldSpec& spec, const fs::path& dir, const Options& o, cons
     j["loadSeconds"] = r->loadSeconds;
     j["loadCpuSeconds"] = r->loadCpuSeconds;
     j["totalSeconds"] = r->totalSeconds;
+    if (opt.write) {
+        j["writeSeconds"] = r->writeSeconds;  // staging every chunk file and committing them
+        std::error_code ec;
+        fs::remove_all(outDir, ec);
+    }
     j["wallSeconds"] = wall;
     j["cpuSeconds"] = cpuOf(ru1) - cpuOf(ru0);  // every thread of the bake: robust to other load
     j["threads"] = o.threads > 0 ? o.threads : int(std::thread::hardware_concurrency());
