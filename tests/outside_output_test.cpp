@@ -94,7 +94,10 @@ TEST(OutsideOutput, NoTrapMakesABakeWriteOutsideItsOutput) {
         }
         EXPECT_EQ(readText(dir / "victim.txt"), kVictimText) << "written through a link";
         // Every chunk file is still a regular file of the space (none became a link).
-        for (const fs::directory_entry& e : fs::directory_iterator(dir / "space"))
-            if (e.path().extension() == ".chunk") EXPECT_FALSE(fs::is_symlink(e.symlink_status())) << e.path();
+        for (const fs::directory_entry& e : fs::directory_iterator(dir / "space")) {
+            if (e.path().extension() == ".chunk") {
+                EXPECT_FALSE(fs::is_symlink(e.symlink_status())) << e.path();
+            }
+        }
     }
 }

@@ -63,7 +63,15 @@ std::string canonical(const std::string& text) { return nlohmann::json::parse(te
 results::ResultsFile handMade(bool withChunks) {
     results::ResultsFile f;
     f.space = "space";
-    f.lights = {{1, 0, "sun", "directional"}, {2, 1, "lamp", "point"}};
+    auto light = [](int index, const char* name, const char* type) {
+        results::LightRecord L;
+        L.index = index;
+        L.bit = index - 1;
+        L.name = name;
+        L.type = type;
+        return L;
+    };
+    f.lights = {light(1, "sun", "directional"), light(2, "lamp", "point")};
     if (withChunks) {
         results::ChunkRecord empty;
         empty.chunk = "00000000o.chunk";
@@ -92,7 +100,7 @@ results::ResultsFile handMade(bool withChunks) {
         kept.stage = "raycast";
         kept.reason = "witness ray";
         kept.witness = results::WitnessRecord{{0.1, 2.0, -3.5}, {0.0, -1.0, 0.0}, {1e-300, 5.0, 6.0}, {7.0, 8.0, 9.0},
-                                              "00000001o.chunk terrain #2 group 0"};
+                                              "00000001o.chunk terrain #2 group 0", std::nullopt};
         results::BitRecord undecided;
         undecided.light = 2;
         undecided.bit = 1;
