@@ -51,30 +51,17 @@ void JsonText::key(std::string_view k) {
     afterKey_ = true;
 }
 
-void JsonText::beginObject() {
+void JsonText::open(char bracket) {
     beforeValue();
-    out_ += '{';
+    out_ += bracket;
     counts_.push_back(0);
 }
 
-void JsonText::endObject() {
+void JsonText::close(char bracket) {
     const size_t members = counts_.back();
     counts_.pop_back();
     if (members > 0) newLine(counts_.size());
-    out_ += '}';
-}
-
-void JsonText::beginArray() {
-    beforeValue();
-    out_ += '[';
-    counts_.push_back(0);
-}
-
-void JsonText::endArray() {
-    const size_t members = counts_.back();
-    counts_.pop_back();
-    if (members > 0) newLine(counts_.size());
-    out_ += ']';
+    out_ += bracket;
 }
 
 void JsonText::value(std::string_view s) {

@@ -25,12 +25,18 @@ public:
     // `base` spaces, every later line with `base` more than nlohmann's dump gives it.
     JsonText(std::string& out, size_t base);
 
-    void beginObject();
-    void endObject();
-    void beginArray();
-    void endArray();
+    void beginObject() { open('{'); }
+    void endObject() { close('}'); }
+    void beginArray() { open('['); }
+    void endArray() { close(']'); }
     // The next member's key (inside an object; the value follows).
     void key(std::string_view k);
+    // A member whose value is one of value()'s: key(k), then value(v).
+    template <class T>
+    void member(std::string_view k, const T& v) {
+        key(k);
+        value(v);
+    }
 
     void value(std::string_view s);
     void value(const char* s) { value(std::string_view(s)); }
@@ -42,6 +48,8 @@ public:
     void value(bool v);
 
 private:
+    void open(char bracket);   // an object or an array, as a value
+    void close(char bracket);  // its end: on a line of its own unless it is empty
     void beforeValue();  // the separator and indentation an array element or a top value needs
     void newLine(size_t depth);
     void writeString(std::string_view s);  // quoted and escaped as nlohmann's dump does

@@ -77,8 +77,7 @@ void witnessText(JsonText& t, const WitnessRecord& w) {
     vecText(t, w.p);
     t.key("q");
     vecText(t, w.q);
-    t.key("receiver");
-    t.value(w.receiver);
+    t.member("receiver", w.receiver);
     if (w.receiverBounds) {
         t.key("receiverBounds");
         boxText(t, *w.receiverBounds);
@@ -88,34 +87,23 @@ void witnessText(JsonText& t, const WitnessRecord& w) {
 
 void bitText(JsonText& t, const BitRecord& b) {
     t.beginObject();
-    t.key("bit");
-    t.value(b.bit);
-    t.key("light");
-    t.value(b.light);
+    t.member("bit", b.bit);
+    t.member("light", b.light);
     if (!b.notes.empty()) {
         t.key("notes");
         t.beginArray();
         for (const auto& [stage, text] : b.notes) {
             t.beginObject();
-            t.key("saw");
-            t.value(text);
-            t.key("stage");
-            t.value(stage);
+            t.member("saw", text);
+            t.member("stage", stage);
             t.endObject();
         }
         t.endArray();
     }
     // Left out when empty, as the bake always has: an undecided bit has neither.
-    if (!b.reason.empty()) {
-        t.key("reason");
-        t.value(b.reason);
-    }
-    if (!b.stage.empty()) {
-        t.key("stage");
-        t.value(b.stage);
-    }
-    t.key("verdict");
-    t.value(b.verdict);
+    if (!b.reason.empty()) t.member("reason", b.reason);
+    if (!b.stage.empty()) t.member("stage", b.stage);
+    t.member("verdict", b.verdict);
     if (b.witness) {
         t.key("witness");
         witnessText(t, *b.witness);
@@ -129,45 +117,30 @@ void groupText(JsonText& t, const GroupRecord& g) {
         t.key("bounds");
         boxText(t, *g.bounds);
     }
-    t.key("group");
-    t.value(g.group);
+    t.member("group", g.group);
     t.key("lights");
     t.beginArray();
     for (const BitRecord& b : g.lights) bitText(t, b);
     t.endArray();
-    t.key("mask");
-    t.value(g.mask);
-    if (g.triangles) {
-        t.key("triangles");
-        t.value(*g.triangles);
-    }
+    t.member("mask", g.mask);
+    if (g.triangles) t.member("triangles", *g.triangles);
     t.endObject();
 }
 
 void objectText(JsonText& t, const ObjectRecord& o) {
     t.beginObject();
-    t.key("element");
-    t.value(o.element);
+    t.member("element", o.element);
     if (!o.skipped) {
         t.key("groups");
         t.beginArray();
         for (const GroupRecord& g : o.groups) groupText(t, g);
         t.endArray();
     }
-    t.key("kind");
-    t.value(o.kind);
-    if (!o.skipped) {
-        t.key("mask");
-        t.value(o.mask);
-    } else {
-        // The bake could not use it: no verdicts to give, and no mask was written.
-        t.key("skipped");
-        t.value(true);
-    }
-    if (!o.uuid.empty()) {
-        t.key("uuid");
-        t.value(o.uuid);
-    }
+    t.member("kind", o.kind);
+    // A skipped object: the bake could not use it; no verdicts to give, no mask written.
+    if (o.skipped) t.member("skipped", true);
+    else t.member("mask", o.mask);
+    if (!o.uuid.empty()) t.member("uuid", o.uuid);
     t.endObject();
 }
 
