@@ -29,6 +29,7 @@
 #include "geometry/exact_reach.h"
 #include "geometry/receiver_rules.h"
 #include "geometry/shadow_query.h"
+#include "geometry/terrain_column.h"
 #include "util/float_mode.h"
 #include "util/format.h"
 #include "util/stop_request.h"
@@ -299,6 +300,11 @@ public:
     const LightGeometry& lightGeometry() const { return lg_; }
     const ReceiverRules& rules() const { return rules_; }
     bool exhaustive() const { return exhaustive_; }
+    // Whether the caster's triangles get columnUnderTerrain first: a terrain's, under a
+    // directional light whose frustum is not dilated (filter radius and normal bias 0).
+    bool sinksIntoTerrain() const {
+        return !local_ && !(L_.filterRadius > 0) && window_.hasTerrain && caster_.kind == ChunkObject::Kind::Terrain;
+    }
     bool local() const { return local_; }
     const OccluderSource* occluders() const { return occluders_ ? &*occluders_ : nullptr; }
 
@@ -381,6 +387,12 @@ public:
 
     CasterResult run() {
         if (!search_.exhaustive()) {
+            // A terrain triangle whose column runs wholly under the ground beyond the bias
+            // (terrain_column.h) reaches no receiver: no walk. (Directional lights without a
+            // filter radius or normal bias: the column is then the whole frustum.)
+            if (search_.sinksIntoTerrain() &&
+                columnUnderTerrain(scene_.window, t_, L_.direction, leastBias(), scene_.limits, scene_.margin))
+                return std::move(result_);
             // Point and spot lights: the whole window. The receiver rules exclude only
             // receivers wholly beyond range, and the exact test does not bound the frustum by
             // range, so a range-bounded box would prove more than they do.
