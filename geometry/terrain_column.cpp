@@ -102,6 +102,11 @@ struct Column {
     // h_i(q) - s (b_i . e) >= 0.
     std::array<Affine2, 3> edge;
     std::array<Bounded, 3> edgeAlong;
+    std::array<int, 3> side{};  // b_i . e's sign: > 0 an upper bound on s, < 0 a lower, 0 uncertain
+    // Each lower bound at most each upper (h_l / b_l.e <= h_u / b_u.e, times b_l.e b_u.e < 0):
+    // b_u.e h_l - b_l.e h_u >= 0; the caster's alone, shared by every cell.
+    std::array<Affine2, 2> pairs;
+    int pairCount = 0;
     Aabb localBox;  // the caster's box, caster-local (rounded outward)
 };
 
@@ -197,21 +202,16 @@ bool cellClear(const Column& col, const std::array<Bounded3, 3>& g, const Bounde
     // where b_i.e > 0, s >= h_i / b_i.e (lower) where < 0; an edge along e bounds q alone
     // (h_i(q) >= s b_i.e >= -sHi |b_i.e|). Then: each lower at most each upper, sLo and sHi
     // included (Fourier-Motzkin); an edge dropped (its sign uncertain) only widens.
-    std::array<int, 3> side{};
-    for (int i = 0; i < 3; ++i) side[size_t(i)] = certainSign(col.edgeAlong[size_t(i)]);
+    const std::array<int, 3>& side = col.side;
     for (int i = 0; i < 3 && !poly.empty(); ++i) {
         const Affine2& h = col.edge[size_t(i)];
         const Bounded& be = col.edgeAlong[size_t(i)];
-        if (side[size_t(i)] == 0) {
+        if (side[size_t(i)] == 0)
             poly.clip(Relaxed(h + constant(exactly(sHi) * absUpper(be)), reach, drift));
-            continue;
-        }
-        // Against the constant bound on the other side: upper vs sLo, lower vs sHi.
-        poly.clip(Relaxed(h - constant(exactly(side[size_t(i)] > 0 ? sLo : sHi) * be), reach, drift));
-        if (side[size_t(i)] > 0) continue;
-        for (int k = 0; k < 3 && !poly.empty(); ++k)  // lower i against upper k
-            if (side[size_t(k)] > 0) poly.clip(Relaxed(col.edgeAlong[size_t(k)] * h - be * col.edge[size_t(k)], reach, drift));
+        else  // against the constant bound on the other side: upper vs sLo, lower vs sHi
+            poly.clip(Relaxed(h - constant(exactly(side[size_t(i)] > 0 ? sLo : sHi) * be), reach, drift));
     }
+    for (int k = 0; k < col.pairCount && !poly.empty(); ++k) poly.clip(Relaxed(col.pairs[size_t(k)], reach, drift));
     // Near enough to the ground: Phi(q) + s R >= 0 for the s the caster's point over q can
     // take. R < 0: s at its least, max(sLo, the lower bounds): every one of Phi + R sLo and
     // (Phi + R h_l / b_l.e) b_l.e... >= 0, i.e. -(b_l.e Phi + R h_l) >= 0. R > 0: s at its most,
@@ -253,7 +253,12 @@ std::optional<Column> makeColumn(const Triangle& t, const glm::dvec3& d, double 
         if (inward < 0) h = -h;
         col.edge[size_t(i)] = h;
         col.edgeAlong[size_t(i)] = h.ax * exactly(d.x) + h.az * exactly(d.z);
+        col.side[size_t(i)] = certainSign(col.edgeAlong[size_t(i)]);
     }
+    for (size_t l = 0; l < 3; ++l)
+        for (size_t u = 0; u < 3; ++u)
+            if (col.side[l] < 0 && col.side[u] > 0 && col.pairCount < 2)
+                col.pairs[size_t(col.pairCount++)] = col.edgeAlong[u] * col.edge[l] - col.edgeAlong[l] * col.edge[u];
     for (const Bounded3& p : col.p) {
         const glm::dvec3 v = p.value(), e = p.error();
         col.localBox.extend(v - e * (1 + 4 * kUnitRoundoff));
@@ -292,7 +297,7 @@ bool columnUnderTerrain(const BakeWindow& w, const Triangle& t, const glm::dvec3
         const auto [lo, hi] = footprint(*col, s0, s1, 4 * margin);
         return std::array<double, 4>{lo.x + o.x, lo.y + o.z, hi.x + o.x, hi.y + o.z};
     };
-    for (int pass = 0; pass < 3; ++pass) {
+    for (int pass = 0; pass < 2; ++pass) {
         const std::array<double, 4> r = lsRect(col->sLeast, sEnd);
         const std::optional<double> low = w.lsTerrainMinOver(r[0], r[1], r[2], r[3]);
         if (!low) return false;  // part of it has no terrain: the rule says nothing there
