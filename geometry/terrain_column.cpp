@@ -144,11 +144,6 @@ std::pair<glm::dvec2, glm::dvec2> footprint(const Column& col, double s0, double
     return {glm::min(a, b) - glm::dvec2(widen), glm::max(c, f) + glm::dvec2(widen)};
 }
 
-// True when no point x = p + s d (p on the caster, s in [sLo, sHi]) over terrain cell `g`
-// (its x-z triangle grown by 2 margin) lies less than the tolerance (plus 2 margin, scaled to
-// the cell's slope) under g's plane. With N = n_c.y n_g.y > 0 and x.y - G(x.xz) the height
-// over g's plane, N (x.y - G(q) - c) at q = x.xz is Phi(q) + s R, Phi affine, R = n_g.y (n_c . d)
-// (x.y is the caster's plane height at q plus s times the rate d.y - grad(caster) . e).
 // n_g.y c, c = -tolerance - 2 margin |n_g|_1 / n_g.y: below every height over g's plane
 // that the terrain rule keeps (its margin is once |n_g| / n_g.y).
 Bounded thresholdOf(const Bounded3& ng, double tolerance, double margin) {
@@ -169,67 +164,104 @@ bool clearByVertices(const Column& col, const Triangle& t, const Triangle& cell,
     return true;
 }
 
+// One terrain cell's linear program, s eliminated: the half-planes over the caster-local x-z
+// plane that a column point's q = x.xz must satisfy, clipped into one polygon. Empty: no
+// column point there (each half-plane relaxed: Relaxed).
+class CellProgram {
+public:
+    CellProgram(const Column& col, double sLo, double sHi, double margin, double reach)
+        : col_(col), sLo_(sLo), sHi_(sHi), margin_(margin), reach_(reach),
+          poly_({glm::dvec2(-reach, -reach), glm::dvec2(reach, -reach), glm::dvec2(reach, reach), glm::dvec2(-reach, reach)}) {}
+    bool empty() const { return poly_.empty(); }
+
+    // Over cell g (caster-local vertices): its x-z triangle's inward half-planes, grown by 2
+    // margin (the terrain rule's prisms are grown by one). False when the cell is too thin
+    // to orient.
+    bool overCell(const std::array<Bounded3, 3>& g) {
+        for (int i = 0; i < 3 && !empty(); ++i) {
+            const Bounded3 &a = g[size_t(i)], &b = g[size_t((i + 1) % 3)], &c = g[size_t((i + 2) % 3)];
+            const Bounded ex = b.x - a.x, ez = b.z - a.z;
+            Affine2 h = {-ez, ex, ez * a.x - ex * a.z};  // (-ez, ex) . (q - a)
+            const int inward = certainSign(h.ax * c.x + h.az * c.z + h.c);
+            if (inward == 0) return false;
+            if (inward < 0) h = -h;
+            h.c = h.c + exactly(2 * margin_) * (absUpper(h.ax) + absUpper(h.az));
+            clip(h);
+        }
+        return true;
+    }
+
+    // Some s in [sLo, sHi] puts q - s e on the caster: h_i(q) - s b_i.e >= 0 is s <= h_i / b_i.e
+    // (upper) where b_i.e > 0, s >= h_i / b_i.e (lower) where < 0; an edge along e bounds q
+    // alone (h_i(q) >= s b_i.e >= -sHi |b_i.e|). Then each lower at most each upper, sLo and
+    // sHi included (Fourier-Motzkin; the caster's own pairs made once, Column::pairs); an
+    // edge whose sign is uncertain only widens.
+    void reachableFromCaster() {
+        for (int i = 0; i < 3 && !empty(); ++i) {
+            const Affine2& h = col_.edge[size_t(i)];
+            const Bounded& be = col_.edgeAlong[size_t(i)];
+            const int side = col_.side[size_t(i)];
+            if (side == 0)
+                clip(h + constant(exactly(sHi_) * absUpper(be)));
+            else  // against the constant bound on the other side: upper vs sLo, lower vs sHi
+                clip(h - constant(exactly(side > 0 ? sLo_ : sHi_) * be));
+        }
+        for (int k = 0; k < col_.pairCount && !empty(); ++k) clip(col_.pairs[size_t(k)]);
+    }
+
+    // Near enough to the ground: phi(q) + s rate >= 0 for the s the caster's point over q can
+    // take (heightTerms). rate < 0: s at its least, max(sLo, the lower bounds): phi + rate sLo
+    // >= 0 and, per lower l, phi + rate h_l / b_l.e >= 0, times b_l.e < 0:
+    // -(b_l.e phi + rate h_l) >= 0. rate > 0: s at its most, likewise with the uppers. rate's
+    // sign uncertain: phi + |rate| sHi (s >= 0).
+    void nearTheGround(const Affine2& phi, const Bounded& rate) {
+        const int rateSign = certainSign(rate);
+        if (rateSign == 0) {
+            clip(phi + constant(absUpper(rate) * exactly(sHi_)));
+            return;
+        }
+        clip(phi + constant(rate * exactly(rateSign < 0 ? sLo_ : sHi_)));
+        for (int i = 0; i < 3 && !empty(); ++i) {
+            if (col_.side[size_t(i)] != rateSign) continue;  // the bounds on s's side that counts
+            const Affine2 bound = col_.edgeAlong[size_t(i)] * phi + rate * col_.edge[size_t(i)];
+            clip(rateSign < 0 ? -bound : bound);
+        }
+    }
+
+private:
+    // The clip's rounded crossing points drift by far less than the margin (Relaxed).
+    void clip(const Affine2& f) { poly_.clip(Relaxed(f, reach_, margin_)); }
+
+    const Column& col_;
+    double sLo_, sHi_, margin_, reach_;
+    Polygon poly_;
+};
+
+// The height of a column point over cell g's plane, less c (thresholdOf), times
+// N = n_c.y n_g.y > 0, as phi(q) + s rate at q = x.xz: x.y is the caster's plane height at q
+// (through o: T(q) = -(n_c.x q.x + n_c.z q.z) / n_c.y) plus s times d.y - grad(T) . e, and
+// g's plane height G(q) is affine too. Returns phi; `rate` = n_g.y (n_c . d).
+Affine2 heightTerms(const Column& col, const std::array<Bounded3, 3>& g, const Bounded3& ng, double tolerance, double margin,
+                    Bounded& rate) {
+    const Bounded3& nc = col.n;
+    const Affine2 nT = {-(ng.y * nc.x), -(ng.y * nc.z), exactly(0.0)};                                        // N T(q)
+    const Affine2 nG = {-(nc.y * ng.x), -(nc.y * ng.z), nc.y * (ng.y * g[0].y + ng.x * g[0].x + ng.z * g[0].z)};  // N G(q)
+    rate = ng.y * col.nd;
+    return nT - nG - constant(nc.y * thresholdOf(ng, tolerance, margin));
+}
+
+// True when no point x = p + s d (p on the caster, s in [sLo, sHi]) over terrain cell `g`
+// (caster-local; its x-z triangle grown by 2 margin) lies less than the tolerance (plus 2
+// margin, scaled to the cell's slope) under g's plane: the cell's linear program is empty.
 bool cellClear(const Column& col, const std::array<Bounded3, 3>& g, const Bounded3& ng, double sLo, double sHi,
                double tolerance, double margin, double reach) {
-    const Bounded threshold = thresholdOf(ng, tolerance, margin);
-
-    // The linear program, s eliminated. Phi(q) = N (T(q) - G(q) - c) with T the caster's
-    // plane height (through o: T(q) = -(n_c.x q.x + n_c.z q.z) / n_c.y) and G g's.
-    const Bounded3& nc = col.n;
-    const Affine2 nT = {-(ng.y * nc.x), -(ng.y * nc.z), exactly(0.0)};  // N T(q)
-    const Affine2 nG = {-(nc.y * ng.x), -(nc.y * ng.z),
-                        nc.y * (ng.y * g[0].y + ng.x * g[0].x + ng.z * g[0].z)};  // N G(q)
-    const Bounded nThreshold = nc.y * threshold;                                   // N c
-    const Affine2 phi = nT - nG - constant(nThreshold);
-    const Bounded rate = ng.y * col.nd;  // R: N times the rate (its sign: n_c . d)
-    const int rateSign = certainSign(rate);
-
-    const double drift = margin;
-    Polygon poly({glm::dvec2(-reach, -reach), glm::dvec2(reach, -reach), glm::dvec2(reach, reach), glm::dvec2(-reach, reach)});
-    // Over g's cell: its x-z triangle's inward half-planes, grown by 2 margin (the terrain
-    // rule's prisms are grown by one).
-    for (int i = 0; i < 3 && !poly.empty(); ++i) {
-        const Bounded3 &a = g[size_t(i)], &b = g[size_t((i + 1) % 3)], &c = g[size_t((i + 2) % 3)];
-        const Bounded ex = b.x - a.x, ez = b.z - a.z;
-        Affine2 h = {-ez, ex, ez * a.x - ex * a.z};  // (-ez, ex) . (q - a)
-        const int inward = certainSign(h.ax * c.x + h.az * c.z + h.c);
-        if (inward == 0) return false;  // a cell too thin to orient: not proved
-        if (inward < 0) h = -h;
-        h.c = h.c + exactly(2 * margin) * (absUpper(h.ax) + absUpper(h.az));
-        poly.clip(Relaxed(h, reach, drift));
-    }
-    // s's bounds from the caster's edges: h_i(q) - s b_i.e >= 0 is s <= h_i / b_i.e (upper)
-    // where b_i.e > 0, s >= h_i / b_i.e (lower) where < 0; an edge along e bounds q alone
-    // (h_i(q) >= s b_i.e >= -sHi |b_i.e|). Then: each lower at most each upper, sLo and sHi
-    // included (Fourier-Motzkin); an edge dropped (its sign uncertain) only widens.
-    const std::array<int, 3>& side = col.side;
-    for (int i = 0; i < 3 && !poly.empty(); ++i) {
-        const Affine2& h = col.edge[size_t(i)];
-        const Bounded& be = col.edgeAlong[size_t(i)];
-        if (side[size_t(i)] == 0)
-            poly.clip(Relaxed(h + constant(exactly(sHi) * absUpper(be)), reach, drift));
-        else  // against the constant bound on the other side: upper vs sLo, lower vs sHi
-            poly.clip(Relaxed(h - constant(exactly(side[size_t(i)] > 0 ? sLo : sHi) * be), reach, drift));
-    }
-    for (int k = 0; k < col.pairCount && !poly.empty(); ++k) poly.clip(Relaxed(col.pairs[size_t(k)], reach, drift));
-    // Near enough to the ground: Phi(q) + s R >= 0 for the s the caster's point over q can
-    // take. R < 0: s at its least, max(sLo, the lower bounds): every one of Phi + R sLo and
-    // (Phi + R h_l / b_l.e) b_l.e... >= 0, i.e. -(b_l.e Phi + R h_l) >= 0. R > 0: s at its most,
-    // likewise with the uppers. R's sign uncertain: Phi + |R| sHi (s >= 0).
-    if (rateSign < 0) {
-        poly.clip(Relaxed(phi + constant(rate * exactly(sLo)), reach, drift));
-        for (int i = 0; i < 3 && !poly.empty(); ++i)
-            if (side[size_t(i)] < 0)
-                poly.clip(Relaxed(-(col.edgeAlong[size_t(i)] * phi + rate * col.edge[size_t(i)]), reach, drift));
-    } else if (rateSign > 0) {
-        poly.clip(Relaxed(phi + constant(rate * exactly(sHi)), reach, drift));
-        for (int i = 0; i < 3 && !poly.empty(); ++i)
-            if (side[size_t(i)] > 0)
-                poly.clip(Relaxed(col.edgeAlong[size_t(i)] * phi + rate * col.edge[size_t(i)], reach, drift));
-    } else {
-        poly.clip(Relaxed(phi + constant(absUpper(rate) * exactly(sHi)), reach, drift));
-    }
-    return poly.empty();
+    Bounded rate;
+    const Affine2 phi = heightTerms(col, g, ng, tolerance, margin, rate);
+    CellProgram program(col, sLo, sHi, margin, reach);
+    if (!program.overCell(g)) return false;  // not proved
+    program.reachableFromCaster();
+    if (!program.empty()) program.nearTheGround(phi, rate);
+    return program.empty();
 }
 
 // The caster, caster-local; false when it is too steep to bound.
@@ -267,48 +299,48 @@ std::optional<Column> makeColumn(const Triangle& t, const glm::dvec3& d, double 
     return col;
 }
 
-}  // namespace
-
-bool columnUnderTerrain(const BakeWindow& w, const Triangle& t, const glm::dvec3& direction, double bias,
-                        const Aabb& lsLimits, double margin) {
-    if (!w.hasTerrain || !(glm::length(direction) > 0)) return false;
-    const glm::dvec3 d = glm::normalize(direction);
-    if (!(d.y < -0.01)) return false;  // a light from the side or below: the column does not sink
-    const std::optional<Column> col = makeColumn(t, d, bias);
-    if (!col) return false;
-    const glm::dvec3& o = t[0];
-    const double tolerance = w.terrainTolerance;
-
-    // Where the column leaves the loaded window (as shadowBox: past sEnd no point of it is
-    // inside the window's box), then where it lies wholly under the lowest ground of its
-    // footprint less the tolerance (no receiver beyond: the terrain rule, every terrain
-    // surface above), narrowing the footprint a few times.
+// Past this parameter no point of the column is inside the window's box `limits` (as
+// shadowBox: each axis's far slab over the caster's vertices), rounded up.
+double exitParameter(const Triangle& t, const glm::dvec3& d, const Aabb& limits, double margin) {
     double sEnd = std::numeric_limits<double>::infinity();
     for (int a = 0; a < 3; ++a) {
         if (d[a] == 0) continue;
         double far = -std::numeric_limits<double>::infinity();
-        for (const glm::dvec3& v : t) far = std::max(far, ((d[a] > 0 ? lsLimits.max[a] : lsLimits.min[a]) - v[a]) / d[a]);
+        for (const glm::dvec3& v : t) far = std::max(far, ((d[a] > 0 ? limits.max[a] : limits.min[a]) - v[a]) / d[a]);
         sEnd = std::min(sEnd, far);
     }
-    sEnd = std::max(sEnd, 0.0) * (1 + 1e-9) + margin;
-    if (!(sEnd > col->sLeast)) return false;  // (no column inside: left to the broad phase)
+    return std::max(sEnd, 0.0) * (1 + 1e-9) + margin;
+}
+
+// The window-local x-z rectangle {x0, z0, x1, z1} holding the column's points of parameters
+// [s0, s1] (footprint), grown by 4 margin.
+std::array<double, 4> lsFootprint(const Column& col, const glm::dvec3& o, double s0, double s1, double margin) {
+    const auto [lo, hi] = footprint(col, s0, s1, 4 * margin);
+    return {lo.x + o.x, lo.y + o.z, hi.x + o.x, hi.y + o.z};
+}
+
+// From `sEnd` down: the parameter past which every point of the column lies under the
+// lowest ground of its footprint less the tolerance (highest + s d.y < low - tolerance -
+// 2 margin; the terrain rule, and every terrain surface above), narrowed twice (a smaller
+// footprint, a higher lowest ground). Nothing where part of a footprint has no terrain.
+std::optional<double> sinkParameter(const BakeWindow& w, const Column& col, const Triangle& t, double sEnd, double margin) {
     const double highest = std::max({t[0].y, t[1].y, t[2].y});
-    auto lsRect = [&](double s0, double s1) {
-        const auto [lo, hi] = footprint(*col, s0, s1, 4 * margin);
-        return std::array<double, 4>{lo.x + o.x, lo.y + o.z, hi.x + o.x, hi.y + o.z};
-    };
-    for (int pass = 0; pass < 2; ++pass) {
-        const std::array<double, 4> r = lsRect(col->sLeast, sEnd);
+    for (int pass = 0; pass < 2 && sEnd > col.sLeast; ++pass) {
+        const std::array<double, 4> r = lsFootprint(col, t[0], col.sLeast, sEnd, margin);
         const std::optional<double> low = w.lsTerrainMinOver(r[0], r[1], r[2], r[3]);
-        if (!low) return false;  // part of it has no terrain: the rule says nothing there
-        // highest + s d.y < low - tolerance - 2 margin for every s past this.
-        const double sDeep = (highest - (*low - tolerance - 2 * margin)) / -d.y * (1 + 1e-9) + margin;
+        if (!low) return std::nullopt;  // part of it has no terrain: the rule says nothing there
+        const double sDeep = (highest - (*low - w.terrainTolerance - 2 * margin)) / -col.d.y * (1 + 1e-9) + margin;
         if (!(sDeep < sEnd)) break;
         sEnd = sDeep;
-        if (!(sEnd > col->sLeast)) return true;  // wholly under the lowest ground from the bias on
     }
+    return sEnd;
+}
 
-    const std::array<double, 4> r = lsRect(col->sLeast, sEnd);
+// Every terrain cell under the column's parameters [sLeast, sEnd] clear: the cheap bound,
+// else the cell's program. False at the first that is not (or that is too steep to bound).
+bool cellsClear(const BakeWindow& w, const Column& col, const Triangle& t, double sEnd, double margin) {
+    const glm::dvec3& o = t[0];
+    const std::array<double, 4> r = lsFootprint(col, o, col.sLeast, sEnd, margin);
     thread_local std::vector<std::array<glm::dvec3, 3>> ground;
     ground.clear();
     // (Cells wholly beside the footprint left out: no column point lies over them.)
@@ -325,18 +357,36 @@ bool columnUnderTerrain(const BakeWindow& w, const Triangle& t, const glm::dvec3
             hi = glm::max(hi, glm::dvec2(v.x - o.x, v.z - o.z));
         }
         const double grow = 2 * margin + 1e-12 * (glm::length(lo) + glm::length(hi));
-        double sLo = col->sLeast, sHi = sEnd;
-        if (!paramsOver(*col, lo - glm::dvec2(grow), hi + glm::dvec2(grow), sLo, sHi)) continue;
+        double sLo = col.sLeast, sHi = sEnd;
+        if (!paramsOver(col, lo - glm::dvec2(grow), hi + glm::dvec2(grow), sLo, sHi)) continue;
         Bounded3 ng = crossOfDifferences(cell[1] - cell[0], cell[2] - cell[0]);
         if (ng.y.value < 0) ng = -ng;
         const glm::dvec3 nv = ng.value();
         if (!(certainSign(ng.y) > 0) || !(nv.y >= kLeastUpness * (std::abs(nv.x) + std::abs(nv.y) + std::abs(nv.z))))
             return false;
-        if (clearByVertices(*col, t, cell, ng, sLo, sHi, tolerance, margin)) continue;
+        if (clearByVertices(col, t, cell, ng, sLo, sHi, w.terrainTolerance, margin)) continue;
         const std::array<Bounded3, 3> g = {difference(cell[0], o), difference(cell[1], o), difference(cell[2], o)};
-        if (!cellClear(*col, g, ng, sLo, sHi, tolerance, margin, reach)) return false;
+        if (!cellClear(col, g, ng, sLo, sHi, w.terrainTolerance, margin, reach)) return false;
     }
     return true;
+}
+
+}  // namespace
+
+bool columnUnderTerrain(const BakeWindow& w, const Triangle& t, const glm::dvec3& direction, double bias,
+                        const Aabb& lsLimits, double margin) {
+    if (!w.hasTerrain || !(glm::length(direction) > 0)) return false;
+    const glm::dvec3 d = glm::normalize(direction);
+    if (!(d.y < -0.01)) return false;  // a light from the side or below: the column does not sink
+    const std::optional<Column> col = makeColumn(t, d, bias);
+    if (!col) return false;
+    // Where the column leaves the loaded window, then where it sinks under all the ground.
+    const double sExit = exitParameter(t, d, lsLimits, margin);
+    if (!(sExit > col->sLeast)) return false;  // (no column inside: left to the broad phase)
+    const std::optional<double> sEnd = sinkParameter(w, *col, t, sExit, margin);
+    if (!sEnd) return false;
+    if (!(*sEnd > col->sLeast)) return true;  // wholly under the lowest ground from the bias on
+    return cellsClear(w, *col, t, *sEnd, margin);
 }
 
 }  // namespace shadowcull::geometry
