@@ -300,10 +300,12 @@ public:
     const LightGeometry& lightGeometry() const { return lg_; }
     const ReceiverRules& rules() const { return rules_; }
     bool exhaustive() const { return exhaustive_; }
-    // Whether the caster's triangles get columnUnderTerrain first: a terrain's, under a
-    // directional light whose frustum is not dilated (filter radius and normal bias 0).
+    // Whether the caster's triangles get columnUnderTerrain first: under a directional
+    // light whose frustum is not dilated (filter radius and normal bias 0), in a window with
+    // terrain. Terrains' and models' alike: a rock's buried triangles sink too (R's geometry
+    // stage on one thread 2.4 -> 2.2 s; a triangle above the ground fails at its first cell).
     bool sinksIntoTerrain() const {
-        return !local_ && !(L_.filterRadius > 0) && window_.hasTerrain && caster_.kind == ChunkObject::Kind::Terrain;
+        return !local_ && !(L_.filterRadius > 0) && window_.hasTerrain;
     }
     bool local() const { return local_; }
     const OccluderSource* occluders() const { return occluders_ ? &*occluders_ : nullptr; }
@@ -387,7 +389,7 @@ public:
 
     CasterResult run() {
         if (!search_.exhaustive()) {
-            // A terrain triangle whose column runs wholly under the ground beyond the bias
+            // A caster triangle whose column runs wholly under the ground beyond the bias
             // (terrain_column.h) reaches no receiver: no walk. (Directional lights without a
             // filter radius or normal bias: the column is then the whole frustum.)
             if (search_.sinksIntoTerrain() &&

@@ -108,6 +108,21 @@ TEST(TerrainColumn, GrazingSunOverFlatGroundIsNotProved) {
     EXPECT_GT(biased.proved, biased.total / 2);
 }
 
+TEST(TerrainColumn, AnyCasterTriangleBuriedOrAboveTheGround) {
+    // The proof does not ask what the caster is: a rock's triangle 1 m under flat ground
+    // sinks with the ground's own; the same triangle 1 m above it casts on the ground.
+    const glm::dvec3 sun(0.2, -1.0, 0.1);
+    const auto l = flatGround(sun, "flat-rock");
+    ASSERT_TRUE(l);
+    const Prover prove(l->window);
+    const double ground = centreTerrainTriangles(*l)[0][0].y;  // window-local
+    for (const double lift : {-1.0, -0.5, 1.0, 0.25}) {  // its vertices at lift, lift + 0.3, lift - 0.2
+        const geometry::Triangle t = {glm::dvec3(40, ground + lift, 40), glm::dvec3(42, ground + lift + 0.3, 40),
+                                      glm::dvec3(40, ground + lift - 0.2, 43)};
+        EXPECT_EQ(prove(t, sun, 0.05), lift < 0) << "a triangle " << lift << " m over the ground";
+    }
+}
+
 // A plateau 10 m high ending in a cliff at x = 20 (one cell of 6.25 m): under a sun along
 // +x descending 0.3 per metre, the columns of the plateau's last cells leave the ground past
 // the cliff's edge and run through the air over its foot.
