@@ -64,9 +64,10 @@ struct Relaxed {
 class Polygon {
 public:
     explicit Polygon(const std::array<glm::dvec2, 4>& box) : n_(4) { std::copy(box.begin(), box.end(), buffers_[0].begin()); }
-    bool empty() const { return n_ == 0; }
+    // (A polygon that outgrew its buffer is never empty: conservative.)
+    bool empty() const { return n_ == 0 && !overflow_; }
     void clip(const Relaxed& h) {
-        if (n_ == 0) return;
+        if (n_ == 0 || overflow_) return;
         const std::array<glm::dvec2, kMax>& in = buffers_[current_];
         std::array<glm::dvec2, kMax>& out = buffers_[1 - current_];
         size_t m = 0;
@@ -75,18 +76,20 @@ public:
             [](const glm::dvec2& p, const glm::dvec2& q, double fp, double fq) { return p + (q - p) * (fp / (fp - fq)); },
             [&](const glm::dvec2& p) {
                 if (m < kMax) out[m++] = p;
+                else overflow_ = true;
             });
         current_ = 1 - current_;
         n_ = m;
     }
 
 private:
-    // A convex polygon clipped by a half-plane gains at most one vertex: 4 + the ~15
-    // half-planes below stays under this.
+    // A convex polygon clipped by a half-plane gains at most one vertex: 4 + the at most 12
+    // half-planes of a cell's program stays under this.
     static constexpr size_t kMax = 32;
     std::array<std::array<glm::dvec2, kMax>, 2> buffers_;
     int current_ = 0;
     size_t n_;
+    bool overflow_ = false;
 };
 
 // The caster, caster-local, and what every cell's test shares.
