@@ -1,6 +1,7 @@
 // GeometryStage: see geometry_stage.h. Per window: gather the bits to examine; per bit, walk
-// the caster group's triangles (clusters of its mesh tree first), each triangle's frustum
-// against the receivers the broad phase reaches (trees over the window's objects and their
+// the caster group's triangles (clusters of its mesh tree first), each triangle's column
+// first against the terrain (terrain_column.h: wholly under the ground, no receiver), else its
+// frustum against the receivers the broad phase reaches (trees over the window's objects and their
 // meshes, in double with margins), those through the double filters and the receiver rules
 // (receiver_rules.h) to the exact test (exact_reach.h); then the verdict and its note.
 // Every double test here only ever discards a receiver when it clearly cannot receive
