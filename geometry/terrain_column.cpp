@@ -43,6 +43,16 @@ Affine2 operator-(const Affine2& f) { return {-f.ax, -f.az, -f.c}; }  // exact
 Affine2 constant(const Bounded& c) { return {exactly(0.0), exactly(0.0), c}; }
 Bounded absUpper(const Bounded& b) { return exactly((std::abs(b.value) + b.error) * (1 + 2 * kUnitRoundoff)); }
 
+// The inward half-plane of the x-z edge a -> b of triangle (a, b, c): (-ez, ex) . (q - a),
+// turned to hold c. Nothing when c's side is not certain (a triangle too thin to orient).
+std::optional<Affine2> inwardEdge(const Bounded3& a, const Bounded3& b, const Bounded3& c) {
+    const Bounded ex = b.x - a.x, ez = b.z - a.z;
+    const Affine2 h = {-ez, ex, ez * a.x - ex * a.z};
+    const int inward = certainSign(h.ax * c.x + h.az * c.z + h.c);
+    if (inward == 0) return std::nullopt;
+    return inward > 0 ? h : -h;
+}
+
 // The half-plane f >= 0 as the clip tests it: relaxed by f's rounding bound over |q| <= reach
 // (its coefficients' errors; the evaluation's own rounding, gamma(4) of its terms), and by
 // `drift` metres of slack for the clip's rounded crossing points (each within a few units
@@ -137,16 +147,6 @@ bool paramsOver(const Column& col, const glm::dvec2& lo, const glm::dvec2& hi, d
     return sLo <= sHi;
 }
 
-// The footprint of the column's parameters [s0, s1]: the x-z box of the caster's box moved
-// by s e, caster-local, grown by `grow`.
-std::pair<glm::dvec2, glm::dvec2> footprint(const Column& col, double s0, double s1, double grow) {
-    const glm::dvec2 lo(col.localBox.min.x, col.localBox.min.z), hi(col.localBox.max.x, col.localBox.max.z);
-    const glm::dvec2 e(col.d.x, col.d.z);
-    const glm::dvec2 a = lo + s0 * e, b = lo + s1 * e, c = hi + s0 * e, f = hi + s1 * e;
-    const double widen = 1e-12 * (glm::length(c) + glm::length(f) + glm::length(a) + glm::length(b)) + grow;
-    return {glm::min(a, b) - glm::dvec2(widen), glm::max(c, f) + glm::dvec2(widen)};
-}
-
 // n_g.y c, c = -tolerance - 2 margin |n_g|_1 / n_g.y: below every height over g's plane
 // that the terrain rule keeps (its margin is once |n_g| / n_g.y).
 Bounded thresholdOf(const Bounded3& ng, double tolerance, double margin) {
@@ -156,11 +156,10 @@ Bounded thresholdOf(const Bounded3& ng, double tolerance, double margin) {
 // The cheap bound: the caster's vertices' heights over g's plane (times n_g.y: n_g . (p - g0),
 // at the exact window-local vertices) plus s (n_g . d) at its most over [sLo, sHi] (0 <= sLo:
 // at sLo where n_g . d < 0 for certain, else at most sHi |n_g . d|), below the threshold.
-bool clearByVertices(const Column& col, const Triangle& t, const Triangle& cell, const Bounded3& ng, double sLo, double sHi,
-                     double tolerance, double margin) {
+bool clearByVertices(const Column& col, const Triangle& t, const Triangle& cell, const Bounded3& ng, const Bounded& threshold,
+                     double sLo, double sHi) {
     const Bounded ngd = dot(ng, col.dExact);
     const Bounded sTerm = certainSign(ngd) < 0 ? exactly(sLo) * ngd : exactly(sHi) * absUpper(ngd);
-    const Bounded threshold = thresholdOf(ng, tolerance, margin);
     const BoundedPlane over(ng, cell[0], sTerm - threshold);
     for (const glm::dvec3& p : t)
         if (!(certainSign(over.at(p)) < 0)) return false;
@@ -182,14 +181,10 @@ public:
     // to orient.
     bool overCell(const std::array<Bounded3, 3>& g) {
         for (int i = 0; i < 3 && !empty(); ++i) {
-            const Bounded3 &a = g[size_t(i)], &b = g[size_t((i + 1) % 3)], &c = g[size_t((i + 2) % 3)];
-            const Bounded ex = b.x - a.x, ez = b.z - a.z;
-            Affine2 h = {-ez, ex, ez * a.x - ex * a.z};  // (-ez, ex) . (q - a)
-            const int inward = certainSign(h.ax * c.x + h.az * c.z + h.c);
-            if (inward == 0) return false;
-            if (inward < 0) h = -h;
-            h.c = h.c + exactly(2 * margin_) * (absUpper(h.ax) + absUpper(h.az));
-            clip(h);
+            std::optional<Affine2> h = inwardEdge(g[size_t(i)], g[size_t((i + 1) % 3)], g[size_t((i + 2) % 3)]);
+            if (!h) return false;
+            h->c = h->c + exactly(2 * margin_) * (absUpper(h->ax) + absUpper(h->az));
+            clip(*h);
         }
         return true;
     }
@@ -244,22 +239,22 @@ private:
 // N = n_c.y n_g.y > 0, as phi(q) + s rate at q = x.xz: x.y is the caster's plane height at q
 // (through o: T(q) = -(n_c.x q.x + n_c.z q.z) / n_c.y) plus s times d.y - grad(T) . e, and
 // g's plane height G(q) is affine too. Returns phi; `rate` = n_g.y (n_c . d).
-Affine2 heightTerms(const Column& col, const std::array<Bounded3, 3>& g, const Bounded3& ng, double tolerance, double margin,
+Affine2 heightTerms(const Column& col, const std::array<Bounded3, 3>& g, const Bounded3& ng, const Bounded& threshold,
                     Bounded& rate) {
     const Bounded3& nc = col.n;
     const Affine2 nT = {-(ng.y * nc.x), -(ng.y * nc.z), exactly(0.0)};                                        // N T(q)
     const Affine2 nG = {-(nc.y * ng.x), -(nc.y * ng.z), nc.y * (ng.y * g[0].y + ng.x * g[0].x + ng.z * g[0].z)};  // N G(q)
     rate = ng.y * col.nd;
-    return nT - nG - constant(nc.y * thresholdOf(ng, tolerance, margin));
+    return nT - nG - constant(nc.y * threshold);
 }
 
 // True when no point x = p + s d (p on the caster, s in [sLo, sHi]) over terrain cell `g`
 // (caster-local; its x-z triangle grown by 2 margin) lies less than the tolerance (plus 2
 // margin, scaled to the cell's slope) under g's plane: the cell's linear program is empty.
-bool cellClear(const Column& col, const std::array<Bounded3, 3>& g, const Bounded3& ng, double sLo, double sHi,
-               double tolerance, double margin, double reach) {
+bool cellClear(const Column& col, const std::array<Bounded3, 3>& g, const Bounded3& ng, const Bounded& threshold, double sLo,
+               double sHi, double margin, double reach) {
     Bounded rate;
-    const Affine2 phi = heightTerms(col, g, ng, tolerance, margin, rate);
+    const Affine2 phi = heightTerms(col, g, ng, threshold, rate);
     CellProgram program(col, sLo, sHi, margin, reach);
     if (!program.overCell(g)) return false;  // not proved
     program.reachableFromCaster();
@@ -280,14 +275,10 @@ std::optional<Column> makeColumn(const Triangle& t, const glm::dvec3& d, double 
     col.nd = dot(col.n, col.dExact);
     col.sLeast = bias * (1 - 1e-12);  // the depth along the exact direction is s (1 +- gamma(8))
     for (int i = 0; i < 3; ++i) {
-        const Bounded3 &a = col.p[size_t(i)], &b = col.p[size_t((i + 1) % 3)], &c = col.p[size_t((i + 2) % 3)];
-        const Bounded ex = b.x - a.x, ez = b.z - a.z;
-        Affine2 h = {-ez, ex, ez * a.x - ex * a.z};
-        const int inward = certainSign(h.ax * c.x + h.az * c.z + h.c);
-        if (inward == 0) return std::nullopt;
-        if (inward < 0) h = -h;
-        col.edge[size_t(i)] = h;
-        col.edgeAlong[size_t(i)] = h.ax * exactly(d.x) + h.az * exactly(d.z);
+        const std::optional<Affine2> h = inwardEdge(col.p[size_t(i)], col.p[size_t((i + 1) % 3)], col.p[size_t((i + 2) % 3)]);
+        if (!h) return std::nullopt;
+        col.edge[size_t(i)] = *h;
+        col.edgeAlong[size_t(i)] = h->ax * exactly(d.x) + h->az * exactly(d.z);
         col.side[size_t(i)] = certainSign(col.edgeAlong[size_t(i)]);
     }
     for (size_t l = 0; l < 3; ++l)
@@ -316,9 +307,14 @@ double exitParameter(const Triangle& t, const glm::dvec3& d, const Aabb& limits,
 }
 
 // The window-local x-z rectangle {x0, z0, x1, z1} holding the column's points of parameters
-// [s0, s1] (footprint), grown by 4 margin.
+// [s0, s1]: the caster's box moved by s e, grown by 4 margin (and far more than its
+// rounding), then moved back by o.
 std::array<double, 4> lsFootprint(const Column& col, const glm::dvec3& o, double s0, double s1, double margin) {
-    const auto [lo, hi] = footprint(col, s0, s1, 4 * margin);
+    const glm::dvec2 boxLo(col.localBox.min.x, col.localBox.min.z), boxHi(col.localBox.max.x, col.localBox.max.z);
+    const glm::dvec2 e(col.d.x, col.d.z);
+    const glm::dvec2 a = boxLo + s0 * e, b = boxLo + s1 * e, c = boxHi + s0 * e, f = boxHi + s1 * e;
+    const double widen = 1e-12 * (glm::length(c) + glm::length(f) + glm::length(a) + glm::length(b)) + 4 * margin;
+    const glm::dvec2 lo = glm::min(a, b) - glm::dvec2(widen), hi = glm::max(c, f) + glm::dvec2(widen);
     return {lo.x + o.x, lo.y + o.z, hi.x + o.x, hi.y + o.z};
 }
 
@@ -367,9 +363,10 @@ bool cellsClear(const BakeWindow& w, const Column& col, const Triangle& t, doubl
         const glm::dvec3 nv = ng.value();
         if (!(certainSign(ng.y) > 0) || !(nv.y >= kLeastUpness * (std::abs(nv.x) + std::abs(nv.y) + std::abs(nv.z))))
             return false;
-        if (clearByVertices(col, t, cell, ng, sLo, sHi, w.terrainTolerance, margin)) continue;
+        const Bounded threshold = thresholdOf(ng, w.terrainTolerance, margin);
+        if (clearByVertices(col, t, cell, ng, threshold, sLo, sHi)) continue;
         const std::array<Bounded3, 3> g = {difference(cell[0], o), difference(cell[1], o), difference(cell[2], o)};
-        if (!cellClear(col, g, ng, sLo, sHi, w.terrainTolerance, margin, reach)) return false;
+        if (!cellClear(col, g, ng, threshold, sLo, sHi, margin, reach)) return false;
     }
     return true;
 }
