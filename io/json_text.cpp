@@ -38,14 +38,16 @@ void JsonText::beforeValue() {
         started_ = true;
         return;
     }
-    // An array element.
+    nextMember();  // an array element
+}
+
+void JsonText::nextMember() {
     if (counts_.back()++ > 0) out_ += ',';
     newLine(counts_.size());
 }
 
 void JsonText::key(std::string_view k) {
-    if (counts_.back()++ > 0) out_ += ',';
-    newLine(counts_.size());
+    nextMember();
     writeString(k);  // a key is printed as a string is
     out_ += ": ";
     afterKey_ = true;

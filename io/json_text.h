@@ -51,6 +51,7 @@ private:
     void open(char bracket);   // an object or an array, as a value
     void close(char bracket);  // its end: on a line of its own unless it is empty
     void beforeValue();  // the separator and indentation an array element or a top value needs
+    void nextMember();   // the separator and new line before the open container's next member
     void newLine(size_t depth);
     void writeString(std::string_view s);  // quoted and escaped as nlohmann's dump does
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 #include <set>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
@@ -67,21 +68,24 @@ void boxText(JsonText& t, const BoxRecord& b) {
     t.endArray();
 }
 
+// Members whose values are a point or a box: key(k), then the array.
+void memberText(JsonText& t, std::string_view k, const glm::dvec3& v) {
+    t.key(k);
+    vecText(t, v);
+}
+void memberText(JsonText& t, std::string_view k, const BoxRecord& b) {
+    t.key(k);
+    boxText(t, b);
+}
+
 void witnessText(JsonText& t, const WitnessRecord& w) {
     t.beginObject();
-    t.key("direction");
-    vecText(t, w.direction);
-    t.key("origin");
-    vecText(t, w.origin);
-    t.key("p");
-    vecText(t, w.p);
-    t.key("q");
-    vecText(t, w.q);
+    memberText(t, "direction", w.direction);
+    memberText(t, "origin", w.origin);
+    memberText(t, "p", w.p);
+    memberText(t, "q", w.q);
     t.member("receiver", w.receiver);
-    if (w.receiverBounds) {
-        t.key("receiverBounds");
-        boxText(t, *w.receiverBounds);
-    }
+    if (w.receiverBounds) memberText(t, "receiverBounds", *w.receiverBounds);
     t.endObject();
 }
 
@@ -113,10 +117,7 @@ void bitText(JsonText& t, const BitRecord& b) {
 
 void groupText(JsonText& t, const GroupRecord& g) {
     t.beginObject();
-    if (g.bounds) {
-        t.key("bounds");
-        boxText(t, *g.bounds);
-    }
+    if (g.bounds) memberText(t, "bounds", *g.bounds);
     t.member("group", g.group);
     t.key("lights");
     t.beginArray();
