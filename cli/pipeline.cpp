@@ -201,8 +201,11 @@ StageRunner::StageRunner(const BakeOptions& opt, std::future<Status>* glProbe)
         if (useGpu) stages_.push_back(&confirm_);
     }
     candidatePass_ = opt.useGeometry && opt.useRaycast && !opt.gpuBaseline;
-    // A terrain's bits: the shadow volumes before most of their witness rays (raycast_stage.h).
+    // A terrain's bits: the shadow volumes before most of their witness rays, and a large
+    // caster's receiver-side search after the GPU confirmation too (raycast_stage.h): they
+    // find a witness for few bits that those stages do not prove 0.
     if (candidatePass_) rays_.deferLongSearches(kTerrainShortSearch);
+    deferredAfter_ = useGpu ? static_cast<Stage*>(&confirm_) : static_cast<Stage*>(&volumes_);
     densePass_ = useGpu && opt.useRaycast;
     closeUpPass_ = useGpu && opt.gpuCloseUpResolution > 0;
     witnessBaselineCulls_ = opt.gpuBaseline && opt.witnessBaselineCulls;
@@ -250,8 +253,10 @@ Status StageRunner::bake(const BakeWindow& window, ChunkVerdicts& cv, std::vecto
                 !status)
                 return status;
             timings[stages_.size()].stats.add(cs);
-            // Then the witness searches cut short for the shadow volumes go on where neither
-            // decided the bit (on the raycast stage's row).
+        }
+        if (candidatePass_ && stages_[s] == deferredAfter_) {
+            // Then the witness searches cut short for the shadow volumes (and the GPU
+            // confirmation) go on where none decided the bit (on the raycast stage's row).
             StageStats rs;
             if (Status status = rays_.finishDeferred(window, cv, rs); !status) return status;
             timings[size_t(std::find(stages_.begin(), stages_.end(), &rays_) - stages_.begin())].stats.add(rs);

@@ -169,6 +169,7 @@ private:
     gpu::GpuBaselineMethod baseline_;
     std::vector<Stage*> stages_;
     bool candidatePass_ = false;  // witness rays at the geometry stage's candidates
+    const Stage* deferredAfter_ = nullptr;  // the stage after which the deferred searches go on
     bool densePass_ = false;
     // The GPU confirmation again for the directional bits still undecided, each view framed
     // on the casters (GpuConfirmStage::runCloseUp), then witness rays at its pixels.

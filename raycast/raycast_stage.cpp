@@ -463,7 +463,8 @@ struct SearchPass {
     const char* receiverSideWhy = nullptr;
     // Non-zero: a terrain's own-sample searches trace only their first `shortTargets`
     // samples; each bit left undecided goes to `deferred` (under its mutex) with what a
-    // later search needs to go on (RaycastStage::deferLongSearches).
+    // later search needs to go on (RaycastStage::deferLongSearches), and so does every
+    // other large caster's receiver-side search.
     size_t shortTargets = 0;
     std::mutex* deferredMutex = nullptr;
     std::vector<WitnessSearch>* deferred = nullptr;
@@ -486,6 +487,12 @@ struct SearchPass {
         const ObjectVerdicts& ov = cv.objects[task.object];
         const uint32_t object = uint32_t(ov.windowObject);
         const bool ownSamples = task.targets.empty() && !task.throughReceivers;
+        // A receiver-side search left for later (deferLongSearches) keeps its reason, and
+        // costs nothing once a stage in between decided its bit.
+        if (task.throughReceivers) {
+            if (receiverSideWhy) why = receiverSideWhy;
+            if (task.light >= 0 && cv.at(task.object, task.group, task.light).verdict != Verdict::Undecided) return;
+        }
         if (task.targets.empty()) {
             if (task.throughReceivers && task.light >= 0)
                 task.targets = receiverTargets(window, object, uint32_t(task.group), window.lsLights[size_t(task.light)],
@@ -514,8 +521,15 @@ struct SearchPass {
             through.back().throughReceivers = true;
         }
         rays += localRays;
+        if (through.empty()) return;
+        if (deferred) {
+            // After the shadow volumes too, as a terrain's: they prove most such bits 0.
+            std::lock_guard<std::mutex> lock(*deferredMutex);
+            for (WitnessSearch& t : through) deferred->push_back(std::move(t));
+            return;
+        }
         // One bit per light, each a task of its own (a terrain's lights in parallel).
-        if (!through.empty()) run(through, receiverSideWhy, false);
+        run(through, receiverSideWhy, false);
     }
 
     // True when a ray through one of `points` is a witness (the bit is then decided); `lit`

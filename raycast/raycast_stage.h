@@ -86,8 +86,9 @@ public:
 
     // The exact test before a terrain's long searches. From deferLongSearches(n) on, run()
     // traces only the first n of a terrain bit's own samples and leaves the bit undecided
-    // without a note; finishDeferred() then searches on from sample n (and through the
-    // receivers in its shadow) for the bits still undecided. A bit ends with the same
+    // without a note, and leaves every large caster's receiver-side search for later;
+    // finishDeferred() then searches on from sample n (and through the receivers in its
+    // shadow) for the bits still undecided. A bit ends with the same
     // witness either way (the first of the same samples in the same order), and one the
     // shadow volumes prove 0 in between has none: most of a terrain's bits, whose searches
     // trace thousands of lines that find nothing under the ground (docs/semantics.md,

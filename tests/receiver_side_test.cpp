@@ -427,6 +427,43 @@ TEST(ReceiverSide, ASearchCutShortAndFinishedEndsAsTheFullSearch) {
     }
 }
 
+// A large model's receiver-side search waits for the shadow volumes too: a 20 m plate lying
+// 5 mm over flat ground under a 5 cm bias has nothing more than the bias behind it, so its
+// own samples find no witness and the volumes prove it 0, and its 2,048 receiver-side
+// points are never traced (the same bake without the volumes traces them). Before, that
+// search ran right after the own samples, ahead of the volumes.
+TEST(ReceiverSide, TheVolumesProveALargeModelBeforeItsReceiverSideSearch) {
+    SpaceBuilder b;
+    b.addLight(LightSpec::directional("sun", {0.3, -1.0, 0.2}).withBias(0.05));
+    b.addFlatTerrain(0, 0, 0.0);
+    b.addMesh("plate", MeshSpec::quad({-10, 0, -10}, {-10, 0, 10}, {10, 0, 10}, {10, 0, -10}));
+    const std::string plate = b.addModel("plate", Affine::translation({32.0, 0.005, 32.0}));
+    const ObjectLocation at = b.locateObjects().at(plate);
+    auto raycastRow = [](const cli::BakeResult& r) {
+        const auto t = std::find_if(r.stages.begin(), r.stages.end(), [](const cli::StageTiming& s) { return s.name == "raycast"; });
+        EXPECT_NE(t, r.stages.end());
+        return t == r.stages.end() ? StageStats{} : t->stats;
+    };
+    const cli::BakeResult withVolumes = bakeWith(b, freshTestDir("-v") / "space", 2048);
+    const cli::BakeResult raysAlone = bakeWith(b, freshTestDir("-r") / "space", 2048, false);
+    const Decision* culled = findDecision(withVolumes, at, 0, 0);
+    ASSERT_NE(culled, nullptr);
+    EXPECT_EQ(culled->verdict, Verdict::Culled);
+    EXPECT_EQ(culled->stage, "geometry");
+    const Decision* open = findDecision(raysAlone, at, 0, 0);
+    ASSERT_NE(open, nullptr);
+    EXPECT_EQ(open->verdict, Verdict::Undecided);
+    bool receiverSide = false;  // the search the volumes spare was made without them
+    for (const StageNote& n : open->notes()) receiverSide |= n.text.find("receivers in its shadow") != std::string::npos;
+    EXPECT_TRUE(receiverSide);
+    // The plate's own 268 samples and the terrain's first 256 (1,548 rays here), against
+    // those, the terrain's full search and the plate's receiver side (12,262; 6,568 when
+    // the plate's receiver side ran ahead of the volumes).
+    const StageStats shortRays = raycastRow(withVolumes), fullRays = raycastRow(raysAlone);
+    EXPECT_EQ(shortRays.bitsExamined, fullRays.bitsExamined);
+    EXPECT_LT(shortRays.raysCast * 2, fullRays.raysCast) << shortRays.raysCast << " against " << fullRays.raysCast;
+}
+
 // In a bake, the shadow volumes come between a terrain's short search and the rest: the
 // terrain over the plate deeper than the tolerance is proved 0 by them, and the witness
 // rays stop after its first samples, instead of tracing all of them and the receiver side
