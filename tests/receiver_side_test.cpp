@@ -427,6 +427,45 @@ TEST(ReceiverSide, ASearchCutShortAndFinishedEndsAsTheFullSearch) {
     }
 }
 
+namespace {
+
+// `b` baked with the shadow volumes and without (rays alone): `at`'s first bit proved 0 by
+// the volumes, and left undecided without them (`open`, its decision there); the raycast
+// stage's row of each.
+struct VolumesFirst {
+    cli::BakeResult withVolumes, raysAlone;
+    const Decision* open = nullptr;
+    StageStats shortRays, fullRays;
+};
+
+StageStats raycastRow(const cli::BakeResult& r) {
+    const auto t = std::find_if(r.stages.begin(), r.stages.end(), [](const cli::StageTiming& s) { return s.name == "raycast"; });
+    EXPECT_NE(t, r.stages.end());
+    return t == r.stages.end() ? StageStats{} : t->stats;
+}
+
+VolumesFirst volumesFirst(const SpaceBuilder& b, const ObjectLocation& at) {
+    VolumesFirst r;
+    r.withVolumes = bakeWith(b, freshTestDir("-v") / "space", 2048);
+    r.raysAlone = bakeWith(b, freshTestDir("-r") / "space", 2048, false);
+    const Decision* culled = findDecision(r.withVolumes, at, 0, 0);
+    EXPECT_NE(culled, nullptr);
+    if (culled) {
+        EXPECT_EQ(culled->verdict, Verdict::Culled);
+        EXPECT_EQ(culled->stage, "geometry");
+    }
+    r.open = findDecision(r.raysAlone, at, 0, 0);
+    EXPECT_NE(r.open, nullptr);
+    if (r.open) {
+        EXPECT_EQ(r.open->verdict, Verdict::Undecided);
+    }
+    r.shortRays = raycastRow(r.withVolumes);
+    r.fullRays = raycastRow(r.raysAlone);
+    return r;
+}
+
+}  // namespace
+
 // A large model's receiver-side search waits for the shadow volumes too: a 20 m plate lying
 // 5 mm over flat ground under a 5 cm bias has nothing more than the bias behind it, so its
 // own samples find no witness and the volumes prove it 0, and its 2,048 receiver-side
@@ -438,30 +477,16 @@ TEST(ReceiverSide, TheVolumesProveALargeModelBeforeItsReceiverSideSearch) {
     b.addFlatTerrain(0, 0, 0.0);
     b.addMesh("plate", MeshSpec::quad({-10, 0, -10}, {-10, 0, 10}, {10, 0, 10}, {10, 0, -10}));
     const std::string plate = b.addModel("plate", Affine::translation({32.0, 0.005, 32.0}));
-    const ObjectLocation at = b.locateObjects().at(plate);
-    auto raycastRow = [](const cli::BakeResult& r) {
-        const auto t = std::find_if(r.stages.begin(), r.stages.end(), [](const cli::StageTiming& s) { return s.name == "raycast"; });
-        EXPECT_NE(t, r.stages.end());
-        return t == r.stages.end() ? StageStats{} : t->stats;
-    };
-    const cli::BakeResult withVolumes = bakeWith(b, freshTestDir("-v") / "space", 2048);
-    const cli::BakeResult raysAlone = bakeWith(b, freshTestDir("-r") / "space", 2048, false);
-    const Decision* culled = findDecision(withVolumes, at, 0, 0);
-    ASSERT_NE(culled, nullptr);
-    EXPECT_EQ(culled->verdict, Verdict::Culled);
-    EXPECT_EQ(culled->stage, "geometry");
-    const Decision* open = findDecision(raysAlone, at, 0, 0);
-    ASSERT_NE(open, nullptr);
-    EXPECT_EQ(open->verdict, Verdict::Undecided);
+    const VolumesFirst r = volumesFirst(b, b.locateObjects().at(plate));
+    ASSERT_NE(r.open, nullptr);
     bool receiverSide = false;  // the search the volumes spare was made without them
-    for (const StageNote& n : open->notes()) receiverSide |= n.text.find("receivers in its shadow") != std::string::npos;
+    for (const StageNote& n : r.open->notes()) receiverSide |= n.text.find("receivers in its shadow") != std::string::npos;
     EXPECT_TRUE(receiverSide);
     // The plate's own 268 samples and the terrain's first 256 (1,548 rays here), against
     // those, the terrain's full search and the plate's receiver side (12,262; 6,568 when
     // the plate's receiver side ran ahead of the volumes).
-    const StageStats shortRays = raycastRow(withVolumes), fullRays = raycastRow(raysAlone);
-    EXPECT_EQ(shortRays.bitsExamined, fullRays.bitsExamined);
-    EXPECT_LT(shortRays.raysCast * 2, fullRays.raysCast) << shortRays.raysCast << " against " << fullRays.raysCast;
+    EXPECT_EQ(r.shortRays.bitsExamined, r.fullRays.bitsExamined);
+    EXPECT_LT(r.shortRays.raysCast * 2, r.fullRays.raysCast) << r.shortRays.raysCast << " against " << r.fullRays.raysCast;
 }
 
 // In a bake, the shadow volumes come between a terrain's short search and the rest: the
@@ -470,25 +495,10 @@ TEST(ReceiverSide, TheVolumesProveALargeModelBeforeItsReceiverSideSearch) {
 // for nothing (the same bake without the volumes traces those).
 TEST(ReceiverSide, TheVolumesProveATerrainBeforeItsLongSearch) {
     const SpaceBuilder b = plateInTheBand(-0.02);
-    const ObjectLocation terrain = b.locateObjects().at(SpaceBuilder::terrainKey(0, 0));
-    auto raycastRow = [](const cli::BakeResult& r) {
-        const auto t = std::find_if(r.stages.begin(), r.stages.end(), [](const cli::StageTiming& s) { return s.name == "raycast"; });
-        EXPECT_NE(t, r.stages.end());
-        return t == r.stages.end() ? StageStats{} : t->stats;
-    };
-    const cli::BakeResult withVolumes = bakeWith(b, freshTestDir("-v") / "space", 2048);
-    const cli::BakeResult raysAlone = bakeWith(b, freshTestDir("-r") / "space", 2048, false);
-    const Decision* culled = findDecision(withVolumes, terrain, 0, 0);
-    ASSERT_NE(culled, nullptr);
-    EXPECT_EQ(culled->verdict, Verdict::Culled);
-    EXPECT_EQ(culled->stage, "geometry");
-    const Decision* open = findDecision(raysAlone, terrain, 0, 0);
-    ASSERT_NE(open, nullptr);
-    EXPECT_EQ(open->verdict, Verdict::Undecided);
+    const VolumesFirst r = volumesFirst(b, b.locateObjects().at(SpaceBuilder::terrainKey(0, 0)));
     // The short search: at most 256 samples, each a packet lane and at most a closest hit
     // and the surfaces behind it; the full search traced more than 1,000 samples and the
     // receiver side.
-    const StageStats shortRays = raycastRow(withVolumes), fullRays = raycastRow(raysAlone);
-    EXPECT_EQ(shortRays.bitsExamined, fullRays.bitsExamined);
-    EXPECT_LT(shortRays.raysCast * 3, fullRays.raysCast) << shortRays.raysCast << " against " << fullRays.raysCast;
+    EXPECT_EQ(r.shortRays.bitsExamined, r.fullRays.bitsExamined);
+    EXPECT_LT(r.shortRays.raysCast * 3, r.fullRays.raysCast) << r.shortRays.raysCast << " against " << r.fullRays.raysCast;
 }
