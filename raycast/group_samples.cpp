@@ -109,6 +109,14 @@ std::vector<glm::dvec3> place(const WindowObject& object, std::vector<glm::dvec3
 
 }  // namespace
 
+void placeSamples(const WindowObject& object, const std::vector<glm::dvec3>& msPoints, size_t count,
+                  std::vector<glm::dvec3>& placed) {
+    count = std::min(count, msPoints.size());
+    if (placed.size() >= count) return;
+    placed.reserve(msPoints.size());  // the rest, if asked, without moving the prefix twice
+    for (size_t k = placed.size(); k < count; ++k) placed.push_back(object.lsTransform.apply(msPoints[k]));
+}
+
 std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, int areaSamples, int maxFeatureSamples) {
     return place(object, sampleMeshGroup(*object.mesh, group, areaSamples, maxFeatureSamples));
 }
@@ -134,11 +142,17 @@ std::vector<glm::dvec3> sampleGroupWithinReach(const WindowObject& object, uint3
 }
 
 const std::vector<glm::dvec3>& GroupSampleCache::meshPoints(const Mesh& mesh, uint32_t group) {
+    const auto key = std::make_pair(&mesh, group);
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (auto it = local_.find(key); it != local_.end()) return it->second;
+    }
+    // Sampled without the lock (a large mesh's group takes milliseconds, and every other
+    // search would wait for it); a thread that sampled the same group meanwhile wins, with
+    // the same points (sampleMeshGroup is deterministic).
+    std::vector<glm::dvec3> points = sampleMeshGroup(mesh, group, area_, features_);
     std::lock_guard<std::mutex> lock(mutex_);
-    auto key = std::make_pair(&mesh, group);
-    auto it = local_.find(key);
-    if (it == local_.end()) it = local_.emplace(key, sampleMeshGroup(mesh, group, area_, features_)).first;
-    return it->second;  // std::map nodes stay put; entries are never changed again
+    return local_.emplace(key, std::move(points)).first->second;  // std::map nodes stay put; never changed again
 }
 
 std::vector<glm::dvec3> GroupSampleCache::placed(const WindowObject& object, uint32_t group) {

@@ -30,6 +30,13 @@ std::vector<glm::dvec3> sampleMeshGroup(const Mesh& mesh, uint32_t group, int ar
 // The same points placed in the window (window-local, metres).
 std::vector<glm::dvec3> sampleGroup(const WindowObject& object, uint32_t group, int areaSamples, int maxFeatureSamples);
 
+// Appends to `placed` the points of `msPoints` (a mesh's, as sampleMeshGroup gives them)
+// from placed.size() up to `count` (all when fewer), placed in the window as sampleGroup
+// places them: a search that stops at its first witness, most often in the first packet,
+// places only what it traces.
+void placeSamples(const WindowObject& object, const std::vector<glm::dvec3>& msPoints, size_t count,
+                  std::vector<glm::dvec3>& placed);
+
 // Point and spot lights: the points sampleMeshGroup gives, on the group's triangles that
 // have a point within the light's range and cone (their placed boxes against the reach
 // tests of core/light_reach.h), placed in the window. p lies within reach (semantics.md):

@@ -486,20 +486,20 @@ struct SearchPass {
     void searchTask(WitnessSearch& task, const char* why, bool countExamined) const {
         const ObjectVerdicts& ov = cv.objects[task.object];
         const uint32_t object = uint32_t(ov.windowObject);
-        const bool ownSamples = task.targets.empty() && !task.throughReceivers;
+        // The group's own samples (mesh coordinates), placed as the searches reach them.
+        const std::vector<glm::dvec3>* msOwn =
+            task.targets.empty() && !task.throughReceivers ? &samples.meshPoints(*window.objects[object].mesh, uint32_t(task.group))
+                                                           : nullptr;
+        const bool ownSamples = msOwn != nullptr;
         // A receiver-side search left for later (deferLongSearches) keeps its reason, and
         // costs nothing once a stage in between decided its bit.
         if (task.throughReceivers) {
             if (receiverSideWhy) why = receiverSideWhy;
             if (task.light >= 0 && cv.at(task.object, task.group, task.light).verdict != Verdict::Undecided) return;
         }
-        if (task.targets.empty()) {
-            if (task.throughReceivers && task.light >= 0)
-                task.targets = receiverTargets(window, object, uint32_t(task.group), window.lsLights[size_t(task.light)],
-                                               opt.receiverSamples, samples);
-            else if (!task.throughReceivers)
-                task.targets = samples.placed(window.objects[object], uint32_t(task.group));
-        }
+        if (task.targets.empty() && task.throughReceivers && task.light >= 0)
+            task.targets = receiverTargets(window, object, uint32_t(task.group), window.lsLights[size_t(task.light)],
+                                           opt.receiverSamples, samples);
         uint64_t localRays = 0;
         std::optional<bool> large;  // isLargeCaster, asked once
         std::vector<WitnessSearch> through;  // the receiver-side searches the bits call for
@@ -510,10 +510,10 @@ struct SearchPass {
             if (d.verdict != Verdict::Undecided) continue;
             if (countExamined) ++examined;
             if (shortFirst) {
-                searchShort(task, object, l, d, why, localRays);
+                searchShort(task, object, *msOwn, l, d, why, localRays);
                 continue;
             }
-            searchBit(task, object, window.lsLights[size_t(l)], ownSamples, d, why, localRays);
+            searchBit(task, object, window.lsLights[size_t(l)], msOwn, d, why, localRays);
             if (!receiverSideWhy || !ownSamples || d.verdict != Verdict::Undecided) continue;
             if (!large) large = isLargeCaster(window.objects[object], uint32_t(task.group), opt.areaSamples, opt.largeCasterSpacing);
             if (!*large) continue;
@@ -614,16 +614,34 @@ struct SearchPass {
         return std::nullopt;
     }
 
-    // One bit: the task's targets, then, for a point or spot light whose reach cuts the
-    // group, points on the part within reach (its own points beyond reach cannot be p).
-    // Without a witness, a note says what was tried.
+    // Own samples placed before a search goes on past its first packets (placeSamples).
+    static constexpr size_t kFirstPlaced = 64;
+
+    // The first `count` of the group's own samples `msOwn` placed in task.targets (all
+    // when fewer); how many are.
+    size_t placeOwn(WitnessSearch& task, uint32_t object, const std::vector<glm::dvec3>& msOwn, size_t count) const {
+        placeSamples(window.objects[object], msOwn, count, task.targets);
+        return task.targets.size();
+    }
+
+    // One bit: the task's targets (with `msOwn`, the group's own samples: their first
+    // packets, then the rest, the same witness and counts as one list), then, for a point
+    // or spot light whose reach cuts the group, points on the part within reach (its own
+    // points beyond reach cannot be p). Without a witness, a note says what was tried.
     // From the task's fromTarget on, its litBefore counted lit.
-    void searchBit(const WitnessSearch& task, uint32_t object, const Light& L, bool ownSamples, Decision& d,
-                   const char* why, uint64_t& localRays) const {
+    void searchBit(WitnessSearch& task, uint32_t object, const Light& L, const std::vector<glm::dvec3>* msOwn,
+                   Decision& d, const char* why, uint64_t& localRays) const {
+        const bool ownSamples = msOwn != nullptr;
         const std::vector<glm::dvec3>& targets = task.targets;
         size_t lit = task.litBefore;
-        const size_t from = std::min(task.fromTarget, targets.size());
-        if (searchThrough(task, object, L, targets, from, targets.size(), d, why, lit, localRays)) return;
+        size_t end = ownSamples ? placeOwn(task, object, *msOwn, task.fromTarget + kFirstPlaced) : targets.size();
+        const size_t from = std::min(task.fromTarget, end);
+        if (searchThrough(task, object, L, targets, from, end, d, why, lit, localRays)) return;
+        if (ownSamples && end < msOwn->size()) {
+            const size_t placedBefore = end;
+            end = placeOwn(task, object, *msOwn, msOwn->size());
+            if (searchThrough(task, object, L, targets, placedBefore, end, d, why, lit, localRays)) return;
+        }
         std::vector<glm::dvec3> within;
         size_t litWithin = 0;
         if (ownSamples && L.type != LightType::Directional &&
@@ -656,10 +674,10 @@ struct SearchPass {
 
     // The first shortTargets of a bit's own samples; undecided, it is deferred (no note
     // yet: the rest of the search adds it) with where the rest begins.
-    void searchShort(const WitnessSearch& task, uint32_t object, int light, Decision& d, const char* why,
-                     uint64_t& localRays) const {
+    void searchShort(WitnessSearch& task, uint32_t object, const std::vector<glm::dvec3>& msOwn, int light, Decision& d,
+                     const char* why, uint64_t& localRays) const {
         const std::vector<glm::dvec3>& targets = task.targets;
-        const size_t end = std::min(shortTargets, targets.size());
+        const size_t end = placeOwn(task, object, msOwn, shortTargets);
         size_t lit = 0;
         if (searchThrough(task, object, window.lsLights[size_t(light)], targets, 0, end, d, why, lit, localRays)) return;
         WitnessSearch rest{task.object, task.group, light, {}};

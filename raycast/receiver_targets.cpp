@@ -21,15 +21,25 @@ namespace shadowcull::raycast {
 namespace {
 
 // The radical inverse in a small prime base (the second and third coordinates of a
-// target, so that they are not correlated with the first, radicalInverse2).
-double radicalInverse(uint32_t i, uint32_t base) {
-    double inv = 1.0 / base, f = inv, r = 0.0;
+// target, so that they are not correlated with the first, radicalInverse2). The base a
+// constant: its divisions become multiplications (most of a rejected draw's cost).
+template <uint32_t Base>
+double radicalInverse(uint32_t i) {
+    const double inv = 1.0 / Base;
+    double f = inv, r = 0.0;
     while (i > 0) {
-        r += f * double(i % base);
-        i /= base;
+        r += f * double(i % Base);
+        i /= Base;
         f *= inv;
     }
     return r;
+}
+
+// radicalInverse2(i) shifted by `offset` (in [0, 1)) and wrapped into [0, 1): as
+// std::fmod(x, 1.0), exactly (x < 2, and x - 1 is exact for x in [1, 2)).
+double shiftedRadicalInverse2(uint32_t i, double offset) {
+    const double x = radicalInverse2(i) + offset;
+    return x < 1.0 ? x : x - 1.0;
 }
 
 // The light's rays as a 2D projection and a depth along them: orthographic along the
@@ -264,16 +274,16 @@ void addTerrain(const Aim& aim, uint32_t k, Receivers& r) {
 // be more than the bias behind p only where sin(a) < tol / bias (twice that here: the
 // ground is planar only per cell).
 bool grazesGround(const Aim& aim, const std::vector<std::array<glm::dvec3, 3>>& ground) {
-    bool grazing = aim.L.bias <= 0;
+    if (aim.L.bias <= 0) return true;
     for (const auto& g : ground) {
         glm::dvec3 n = glm::cross(g[1] - g[0], g[2] - g[0]);
         const double len = glm::length(n);
         if (!(len > 0)) continue;
         n /= len;
         const glm::dvec3 r = aim.frame.rayAt(g[0]);
-        if (std::abs(glm::dot(r, n)) < 2 * aim.tol * std::abs(n.y) / aim.L.bias) grazing = true;
+        if (std::abs(glm::dot(r, n)) < 2 * aim.tol * std::abs(n.y) / aim.L.bias) return true;
     }
-    return grazing;
+    return false;
 }
 
 // The model's triangles whose placed heights can meet [bottom, highest] (conservative node
@@ -488,15 +498,15 @@ std::vector<glm::dvec3> drawTargets(const Aim& aim, Receivers& r, int budget, Gr
         bool onTerrain = false;
         if (!r.band.empty() && attempt % 2 == 1) {
             const uint32_t s = bandIndex++;
-            const BandSegment& seg = r.band[pick(bandCumulative, std::fmod(radicalInverse2(s) + offset, 1.0))];
-            p = seg.a + (seg.b - seg.a) * radicalInverse(s, 3);
+            const BandSegment& seg = r.band[pick(bandCumulative, shiftedRadicalInverse2(s, offset))];
+            p = seg.a + (seg.b - seg.a) * radicalInverse<3>(s);
         } else {
-            Source& src = r.sources[pick(cumulative, std::fmod(radicalInverse2(areaIndex++) + offset, 1.0))];
+            Source& src = r.sources[pick(cumulative, shiftedRadicalInverse2(areaIndex++, offset))];
             const uint32_t s = src.next++;
             const WindowObject& o = w.objects[src.object];
             if (src.terrain) {
-                const auto& t = src.tris[pick(src.cumulative, std::fmod(radicalInverse2(s) + offset, 1.0))];
-                double a = radicalInverse(s, 3), b = radicalInverse(s, 5);
+                const auto& t = src.tris[pick(src.cumulative, shiftedRadicalInverse2(s, offset))];
+                double a = radicalInverse<3>(s), b = radicalInverse<5>(s);
                 if (a + b > 1) {
                     a = 1 - a;
                     b = 1 - b;

@@ -110,6 +110,31 @@ TEST(GroupSamples, TheCacheSamplesEachMeshOnceAndPlacesItPerObject) {
     EXPECT_EQ(cache.placed(a, 0)[0], a.lsTransform.apply(local));
 }
 
+// A search places its own samples a prefix at a time (placeSamples): every prefix, and
+// the whole list at the end, the very points placed() gives at once; asking for fewer than
+// are placed, or more than there are, changes nothing.
+TEST(GroupSamples, PlacedAPrefixAtATimeTheSameAsAtOnce) {
+    Mesh m = twoGroupMesh();
+    WindowObject b;
+    b.mesh = &m;
+    b.lsTransform.rows[0] = glm::dvec3(0, 0, 1);
+    b.lsTransform.rows[2] = glm::dvec3(-1, 0, 0);
+    b.lsTransform.rows[3] = glm::dvec3(-40, 2, 7);
+    raycast::GroupSampleCache cache(32, 100);
+    for (uint32_t g : {0u, 1u}) {
+        const std::vector<glm::dvec3>& ms = cache.meshPoints(m, g);
+        const std::vector<glm::dvec3> all = cache.placed(b, g);
+        ASSERT_GT(all.size(), 20u);
+        std::vector<glm::dvec3> placed;
+        for (size_t n : {size_t(0), size_t(16), size_t(5), size_t(17), all.size() - 1, all.size() + 64}) {
+            raycast::placeSamples(b, ms, n, placed);
+            const size_t expect = std::min(all.size(), std::max<size_t>(n, n == 5 ? 16 : 0));
+            ASSERT_EQ(placed.size(), expect) << "asked for " << n;
+            EXPECT_TRUE(std::equal(placed.begin(), placed.end(), all.begin())) << "asked for " << n;
+        }
+    }
+}
+
 // The window slides: prototypes of the meshes it left behind (each chunk's terrain) are
 // released, so the scenes held follow the window, not the world.
 TEST(EmbreeScenes, PrototypesFollowTheWindow) {
