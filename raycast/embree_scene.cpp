@@ -90,10 +90,12 @@ EmbreeScenes::Prototype EmbreeScenes::buildPrototype(const Mesh* mesh, bool terr
     std::vector<uint32_t> opaque;
     for (uint32_t t = 0; t < mesh->triangles.size(); ++t)
         if (!mesh->groups[mesh->triangleGroup[t]].alphaTested) opaque.push_back(t);
-    if (opaque.size() == mesh->triangles.size())
+    if (opaque.size() == mesh->triangles.size()) {
         proto.opaque = proto.all;
-    else if (!opaque.empty())
+    } else if (!opaque.empty()) {
         proto.opaque = makeScene(opaque);
+        proto.opaqueTriangles = std::make_shared<const std::vector<uint32_t>>(std::move(opaque));
+    }
     return proto;
 }
 
@@ -158,7 +160,12 @@ WindowScene EmbreeScenes::buildWindow(const BakeWindow& w) {
     const bool split = needsTransparencyFilter(w);
     RTCScene all = nullptr, opaque = nullptr;
     tbb::parallel_invoke([&] { all = placeAll(w, false); }, [&] { opaque = split ? placeAll(w, true) : nullptr; });
-    WindowScene scene(all, split ? opaque : all);
+    std::vector<WindowScene::TriangleMap> opaqueTriangles;
+    if (split) {
+        opaqueTriangles.reserve(w.objects.size());
+        for (const WindowObject& o : w.objects) opaqueTriangles.push_back(prototypes_.at(o.mesh).opaqueTriangles);
+    }
+    WindowScene scene(all, split ? opaque : all, std::move(opaqueTriangles));
     // The window slid: the prototypes of meshes it no longer holds (the terrains of the
     // chunks left behind) are released, so that memory follows the window, not the world.
     const std::unordered_set<const Mesh*> loaded = w.meshes();

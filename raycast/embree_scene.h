@@ -8,8 +8,10 @@
 // exposes Embree types.
 #pragma once
 
+#include <memory>
 #include <unordered_map>
 #include <unordered_set>
+#include <vector>
 
 #include <embree3/rtcore.h>
 
@@ -22,21 +24,36 @@ namespace shadowcull::raycast {
 // occlusion tests (no filter needed, so Embree's packet kernels run unhindered): the
 // instances without their alpha-tested triangles, and without the objects that cast no
 // shadow (WindowObject::castsShadow). The same scene twice when everything in the window
-// blocks light. Move-only; releases both.
+// blocks light. A closest hit in `opaque` names the triangle by its index among the
+// mesh's opaque ones: meshTriangle maps it back. Move-only; releases both.
 class WindowScene {
 public:
+    // Per window object: the mesh triangle of each of its triangles in `opaque`, in order;
+    // null where those are all of the mesh's (no alpha-tested group).
+    using TriangleMap = std::shared_ptr<const std::vector<uint32_t>>;
+
     WindowScene() = default;
-    WindowScene(RTCScene all, RTCScene opaque) : all_(all), opaque_(opaque) {}
+    WindowScene(RTCScene all, RTCScene opaque, std::vector<TriangleMap> opaqueTriangles = {})
+        : all_(all), opaque_(opaque), opaqueTriangles_(std::move(opaqueTriangles)) {}
     ~WindowScene() { reset(); }
-    WindowScene(WindowScene&& o) noexcept : all_(o.all_), opaque_(o.opaque_) { o.all_ = o.opaque_ = nullptr; }
+    WindowScene(WindowScene&& o) noexcept
+        : all_(o.all_), opaque_(o.opaque_), opaqueTriangles_(std::move(o.opaqueTriangles_)) {
+        o.all_ = o.opaque_ = nullptr;
+    }
     WindowScene& operator=(WindowScene&& o) noexcept {
         if (this != &o) {
             reset();
             all_ = o.all_;
             opaque_ = o.opaque_;
+            opaqueTriangles_ = std::move(o.opaqueTriangles_);
             o.all_ = o.opaque_ = nullptr;
         }
         return *this;
+    }
+    // The mesh triangle of object `object`'s triangle `prim` in `opaque`.
+    uint32_t meshTriangle(uint32_t object, uint32_t prim) const {
+        const TriangleMap* map = object < opaqueTriangles_.size() ? &opaqueTriangles_[object] : nullptr;
+        return map && *map ? (**map)[prim] : prim;
     }
     WindowScene(const WindowScene&) = delete;
     WindowScene& operator=(const WindowScene&) = delete;
@@ -46,10 +63,12 @@ public:
         if (opaque_ && opaque_ != all_) rtcReleaseScene(opaque_);
         if (all_) rtcReleaseScene(all_);
         all_ = opaque_ = nullptr;
+        opaqueTriangles_.clear();
     }
 
 private:
     RTCScene all_ = nullptr, opaque_ = nullptr;
+    std::vector<TriangleMap> opaqueTriangles_;
 };
 
 class EmbreeScenes {
@@ -91,9 +110,11 @@ private:
     // A mesh's scenes, in mesh coordinates less `offset` (terrain: its rounded middle
     // height, so that a lifted terrain gives the same floats; models: zero). `opaque`:
     // without the alpha-tested triangles (== `all` when there are none; nullptr when
-    // every triangle is alpha-tested).
+    // every triangle is alpha-tested). `opaqueTriangles`: the mesh triangles of
+    // `opaque`'s, when it is not `all`.
     struct Prototype {
         RTCScene all = nullptr, opaque = nullptr;
+        WindowScene::TriangleMap opaqueTriangles;
         glm::dvec3 offset{0.0};
         bool compact = false;
         uint64_t raysAtBuild = 0;  // rays_ when it was built

@@ -137,6 +137,7 @@ namespace {
 // Everything one witness search needs about the window, in window-local double.
 struct Tracer {
     const BakeWindow& w;
+    const WindowScene& scenes;
     RTCScene scene;   // every triangle
     RTCScene opaque;  // the triangles that block light (WindowScene::opaque)
     const RaycastOptions& opt;
@@ -178,8 +179,9 @@ struct Tracer {
         return true;
     }
 
+    // The closest hit in `in` (a hit in `opaque` named by its mesh triangle).
     std::optional<Hit> closestHit(RTCIntersectContext* ctx, const glm::dvec3& origin, const glm::dvec3& dir, float tnear,
-                                  float tfar) const {
+                                  float tfar, RTCScene in) const {
         RTCRayHit rh{};
         rh.ray.org_x = float(origin.x);
         rh.ray.org_y = float(origin.y);
@@ -192,9 +194,34 @@ struct Tracer {
         rh.ray.mask = 0xffffffffu;
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(scene, ctx, &rh);
+        rtcIntersect1(in, ctx, &rh);
         if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
-        return Hit{rh.ray.tfar, hitObject(rh.hit.instID[0], rh.hit.geomID), rh.hit.primID};
+        const uint32_t object = hitObject(rh.hit.instID[0], rh.hit.geomID);
+        return Hit{rh.ray.tfar, object, in == scene ? rh.hit.primID : scenes.meshTriangle(object, rh.hit.primID)};
+    }
+
+    // p: the first hit on a surface that blocks light, or on (object, group) itself, from
+    // tnear on. A group that blocks light is itself in the opaque scene, which holds
+    // exactly the other surfaces that count: traced there, without a filter function
+    // (the same triangles, the same robust floats; only a tie at the very same distance
+    // may go to another of the tied triangles, its tree being another). Else in every
+    // triangle, the rest
+    // skipped (skipTransparent: alpha-tested groups other than this one, and objects that
+    // cast no shadow, let light pass).
+    std::optional<Hit> firstBlockingHit(uint32_t object, uint32_t group, const glm::dvec3& origin, const glm::dvec3& dir,
+                                        float tnear, float tfar) const {
+        if (w.objects[object].blocksLight(group) || !needsTransparencyFilter(w)) {
+            RTCIntersectContext plain;
+            rtcInitIntersectContext(&plain);
+            return closestHit(&plain, origin, dir, tnear, tfar, opaque);
+        }
+        TransparentSkip skip;
+        rtcInitIntersectContext(&skip.ctx);
+        skip.ctx.filter = &skipTransparent;
+        skip.window = &w;
+        skip.object = object;
+        skip.group = group;
+        return closestHit(&skip.ctx, origin, dir, tnear, tfar, scene);
     }
 
     // The line from the light through `target`: origin, unit direction, the distance to
@@ -361,17 +388,7 @@ struct Tracer {
         glm::dvec3 origin, dir;
         double tTarget, tfar;
         if (!line(L, target, origin, dir, tTarget, tfar)) return std::nullopt;
-        // p: the closest hit; alpha-tested groups other than this one, and objects that cast no
-        // shadow, let light pass.
-        TransparentSkip skip;
-        rtcInitIntersectContext(&skip.ctx);
-        if (needsTransparencyFilter(w)) {
-            skip.ctx.filter = &skipTransparent;
-            skip.window = &w;
-            skip.object = object;
-            skip.group = group;
-        }
-        std::optional<Hit> first = closestHit(&skip.ctx, origin, dir, tClear, float(tfar));
+        std::optional<Hit> first = firstBlockingHit(object, group, origin, dir, tClear, float(tfar));
         ++*raysCast;
         if (!first || first->object != object || w.objects[object].mesh->triangleGroup[first->prim] != group)
             return std::nullopt;
@@ -410,7 +427,7 @@ struct Tracer {
         rtcInitIntersectContext(&plain);
         float tnear = float(std::max(0.0, L.normalBias > 0 ? tp - eps : tp + L.bias - eps));
         for (int k = 0; k < opt.maxHitsPerRay; ++k) {
-            std::optional<Hit> next = closestHit(&plain, origin, dir, tnear, float(tfar));
+            std::optional<Hit> next = closestHit(&plain, origin, dir, tnear, float(tfar), scene);
             ++*raysCast;
             if (!next) return std::nullopt;
             const Hit& h = *next;
@@ -436,7 +453,7 @@ Tracer makeTracer(const BakeWindow& window, const WindowScene& scene, const Rayc
     const glm::dvec3 ext = glm::max(glm::abs(window.lsBounds.min), glm::abs(window.lsBounds.max));
     const double diag = glm::length(window.lsBounds.max - window.lsBounds.min);
     const double scale = std::max({ext.x, ext.y, ext.z}) + diag;
-    Tracer tracer{window, scene.all(), scene.opaque(), opt, 1e-6 * scale + 1e-6, 1e-9 * scale + 1e-12, diag + 1.0};
+    Tracer tracer{window, scene, scene.all(), scene.opaque(), opt, 1e-6 * scale + 1e-6, 1e-9 * scale + 1e-12, diag + 1.0};
     for (const Light& L : window.lsLights)
         if (L.type != LightType::Directional) {
             tracer.eps = std::max(tracer.eps, 1e-6 * (glm::length(L.position) + L.range) + 1e-6);
