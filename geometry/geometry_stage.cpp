@@ -22,6 +22,7 @@
 #include <vector>
 
 #include <glm/common.hpp>
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include "core/light_reach.h"
@@ -162,21 +163,28 @@ private:
     // The objects' boxes, grown by the margin. The terrain rule, per object: no point of a
     // model deeper than the tolerance under the lowest ground under its box receives, so its
     // box starts there (a half-buried rock's box is mostly its buried half, which a terrain
-    // triangle's column meets first). Wholly under: an empty box, never visited.
+    // triangle's column meets first). Wholly under: an empty box, never visited. In blocks
+    // in parallel (each box its own; the ground queries were half of the window's setup,
+    // which runs before any task).
     std::vector<Aabb> receiverBoxes() const {
         std::vector<Aabb> boxes(window.objects.size());
-        for (size_t k = 0; k < window.objects.size(); ++k) {
-            const WindowObject& o = window.objects[k];
-            boxes[k] = grown(o.lsBounds, margin);
-            if (options.exhaustive || !window.hasTerrain || o.kind == ChunkObject::Kind::Terrain) continue;
-            const std::optional<double> ground =
-                window.lsTerrainMinOver(o.lsBounds.min.x, o.lsBounds.min.z, o.lsBounds.max.x, o.lsBounds.max.z);
-            if (!ground) continue;
-            const double level = *ground - window.terrainTolerance - margin;
-            if (boxes[k].max.y < level) boxes[k] = Aabb{};
-            else boxes[k].min.y = std::max(boxes[k].min.y, level);
-        }
+        const FloatModeScope::Underflow callers = FloatModeScope::current();
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, boxes.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+            const FloatModeScope mode(callers);
+            for (size_t k = r.begin(); k < r.end(); ++k) boxes[k] = receiverBox(window.objects[k]);
+        });
         return boxes;
+    }
+    Aabb receiverBox(const WindowObject& o) const {
+        Aabb box = grown(o.lsBounds, margin);
+        if (options.exhaustive || !window.hasTerrain || o.kind == ChunkObject::Kind::Terrain) return box;
+        const std::optional<double> ground =
+            window.lsTerrainMinOver(o.lsBounds.min.x, o.lsBounds.min.z, o.lsBounds.max.x, o.lsBounds.max.z);
+        if (!ground) return box;
+        const double level = *ground - window.terrainTolerance - margin;
+        if (box.max.y < level) return Aabb{};
+        box.min.y = std::max(box.min.y, level);
+        return box;
     }
 
     // The lights as this stage tests them. A normal bias looks a receiver point q's shadow up

@@ -205,9 +205,8 @@ struct Tracer {
     // exactly the other surfaces that count: traced there, without a filter function
     // (the same triangles, the same robust floats; only a tie at the very same distance
     // may go to another of the tied triangles, its tree being another). Else in every
-    // triangle, the rest
-    // skipped (skipTransparent: alpha-tested groups other than this one, and objects that
-    // cast no shadow, let light pass).
+    // triangle, the rest skipped (skipTransparent: alpha-tested groups other than this
+    // one, and objects that cast no shadow, let light pass).
     std::optional<Hit> firstBlockingHit(uint32_t object, uint32_t group, const glm::dvec3& origin, const glm::dvec3& dir,
                                         float tnear, float tfar) const {
         if (w.objects[object].blocksLight(group) || !needsTransparencyFilter(w)) {
