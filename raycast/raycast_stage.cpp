@@ -693,7 +693,9 @@ struct SearchPass {
     void searchShort(WitnessSearch& task, uint32_t object, const std::vector<glm::dvec3>& msOwn, int light, Decision& d,
                      const char* why, uint64_t& localRays) const {
         const std::vector<glm::dvec3>& targets = task.targets;
-        const size_t end = placeOwn(task, object, msOwn, shortTargets);
+        // (The cut is shortTargets whatever the task placed before, as it was before samples
+        // were placed lazily; today only searchShort places a short-first task's samples.)
+        const size_t end = std::min(shortTargets, placeOwn(task, object, msOwn, shortTargets));
         size_t lit = 0;
         if (searchThrough(task, object, window.lsLights[size_t(light)], targets, 0, end, d, why, lit, localRays)) return;
         WitnessSearch rest{task.object, task.group, light, {}};
